@@ -1,0 +1,568 @@
+r"""Tier 2: slip-plane yield, plane-wise flow, fabric hardening — the return mapping.
+
+Conventions (DESIGN §2): tension positive, Voigt stress (σxx, σyy, σxy), Voigt strain with
+engineering shear, spin increment Δω counter-clockwise. State columns (gp, c, A, Bc, Bs).
+Yield f and flow N: :mod:`contfab.models.slip_planes`; fabric laws:
+:mod:`contfab.models.fabric_law`.
+
+**Update** of one point, stress σ_n, state q_n, increments (Δε, Δω):
+
+1. Objective rotation by the exact angle Δω (as tiers 0/1): σ_n ← Q σ_n Qᵀ and the fabric
+   (Bc, Bs) turned by 2Δω, so a rigid rotation leaves A and B unchanged and turns θp by Δω.
+2. Elastic predictor σ_tr = σ_n + C Δε (C: the isotropic regularization K, G).
+3. f(σ_tr; q_n, c_n) <= 0: elastic (status 0), tangent C.
+4. Otherwise backward Euler on the face: unknowns x = (σ, Δγ, c), residuals
+
+       σ - σ_tr + Δγ C N(σ, c) = 0,   f(σ, c) = 0,   c - c_n exp(-Δγ tr N(σ, c)) = 0,
+
+   with the fabric (A, Bc, Bs) frozen at its rotated start-of-step value inside the solve
+   and c implicit exactly as tier 1 (this is what makes the reduction to tier 1 exact).
+   Local Newton with the analytic Jacobian, from tier 1's closed-form coaxial return
+   with the isotropic part of φ, ψ; backtracking on the residual norm. The face solution
+   is accepted when it converged with Δγ >= 0 and P > 0 (status 1).
+5. Apex (status 2): σ = 0, all of C⁻¹σ_tr plastic, c = c_n exp(P_tr/K), zero tangent
+   (as tier 1), when no face solution exists and C⁻¹σ_tr dilates at least as much as the
+   most dilatant plane allows (G P_tr + K sin ψ_max R_tr <= 0, tier 1's apex criterion
+   with ψ_max the largest plane dilatancy). A face solve that fails outside that region
+   is a failure (status -1).
+6. gp += Δεp1 - Δεp2; the fabric law with Δεp and c_{n+1} (after step 1's rotation). A
+   result outside the admissible set is projected onto it and reported: status 3.
+
+The fabric is explicit in the yield function over a step (it enters f and N at its start
+value) and the stress, c and fabric are first order in the step size overall
+(tests/test_fabric_model.py measures the order). At the end of a step f(σ_{n+1}; q_{n+1})
+differs from 0 by O(Δε) — the next step returns to the current surface, so the error does
+not accumulate.
+
+**Consistent tangent** ∂σ_{n+1}/∂Δε: with the converged Jacobian J of the face residuals
+r(x; Δε), dx/dΔε = J⁻¹ [C; 0; 0] (the only Δε-dependence is σ_tr); exact for this scheme
+(the fabric does not move σ_{n+1} within the step). Tested against central differences.
+
+**Failures** (status -1): non-finite input, c outside (0, 1), a face solve that does not
+converge outside the apex region, a non-finite result. The point returns its input stress
+and state and the elastic tangent; nothing non-finite is produced.
+
+**Parameter array** (angles in radians; indices 0-7 are the regularization and tier 1
+parts, shared with tier 1's layout)::
+
+    [0] K  [1] G  [2] φ* (tier 1's; unused here: a0 plays its role)  [3] φ'  [4] ψ'  [5] c*
+    [6] φ_min  [7] φ_max
+    [8] a0  [9] a1 (per unit A)  [10] a2 (per unit B)  [11] a3
+    [12] b0  [13] b1  [14] b2  [15] b3
+    [16] β (softmax sharpness)  [17] n_search (plane-search grid points per arc)
+    [18] fabric law (0 balance, 1 relaxation)  [19] κa  [20] kc  [21] ko
+    [22] A_c = z_c/π  [23] b_c = B_c/A_c  [24] k (relaxation rate per unit Δγs)
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit, prange
+
+from contfab.fabric import A_EDGE
+from contfab.models.fabric_law import LAW_BALANCE, LAW_RELAXATION, fabric_step, rotate_fabric
+from contfab.models.slip_planes import (N_PL, N_YF, PL_DT, PL_TC, PL_TS, YF_F, YF_FC, YF_FS,
+                                        YF_N, YF_NC, YF_NS, YF_TR, YF_TRC, YF_TRS, fabric_terms,
+                                        yield_and_flow, yield_value)
+from contfab.tensors import rotate
+from dem.conventions import admissibility_margin
+
+STATUS_ELASTIC = 0
+STATUS_FACE = 1
+STATUS_APEX = 2
+STATUS_PROJECTED = 3
+"""Plastic (face or apex) and the fabric had to be projected onto the admissible set."""
+STATUS_FAILED = -1
+
+N_PRM = 25
+NEWTON_MAXIT = 40
+NEWTON_TOL = 1e-12
+"""Local solve: max |residual| (stress residuals relative to |σ_tr|, c absolute)."""
+CUTTING_PLANE_RANGE = 0.1
+"""Local solve: trial states with f_tr <= this · |σ_tr| start from a cutting-plane step."""
+PLANE_STEP_TOL = 1e-9
+"""Local solve: the planes' own Newton steps (radians) at convergence (values exact to ~δθ²)."""
+
+
+# --------------------------------------------------------------------------- small linear algebra
+
+@njit(cache=True, error_model="numpy")
+def _lu(a, piv):
+    """In-place LU with partial pivoting of the square ``a``; False if singular."""
+    n = a.shape[0]
+    for k in range(n):
+        p = k
+        big = abs(a[k, k])
+        for i in range(k + 1, n):
+            if abs(a[i, k]) > big:
+                big = abs(a[i, k])
+                p = i
+        piv[k] = p
+        if big == 0.0 or not np.isfinite(big):
+            return False
+        if p != k:
+            for j in range(n):
+                tmp = a[k, j]
+                a[k, j] = a[p, j]
+                a[p, j] = tmp
+        for i in range(k + 1, n):
+            a[i, k] /= a[k, k]
+            for j in range(k + 1, n):
+                a[i, j] -= a[i, k] * a[k, j]
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def _lu_solve(lu, piv, b):
+    """Solve in place with the factors of :func:`_lu`."""
+    n = lu.shape[0]
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            tmp = b[k]
+            b[k] = b[p]
+            b[p] = tmp
+    for i in range(n):
+        for j in range(i):
+            b[i] -= lu[i, j] * b[j]
+    for i in range(n - 1, -1, -1):
+        for j in range(i + 1, n):
+            b[i] -= lu[i, j] * b[j]
+        b[i] /= lu[i, i]
+
+
+# --------------------------------------------------------------------------- the face return
+
+@njit(cache=True, error_model="numpy")
+def _residual(x, ttr, c_n, a, bc, bs, prm, theta, search, pl, yf, res, jac, s_ref):
+    """Face residuals at x = (σxx, σyy, σxy, Δγ, c), planes ``theta``, into ``res``.
+
+    The Jacobian (planes condensed, :func:`contfab.models.slip_planes.plane_terms`) goes to
+    ``jac``. With ``search`` the planes are first moved to their exact arc maxima.
+    Returns max |res| (inf if x is outside the domain: c <= 0).
+    """
+    bulk = prm[0]
+    shear = prm[1]
+    dgam = x[3]
+    c = x[4]
+    if not c > 0.0:
+        return np.inf
+    fab = fabric_terms(c, a, bc, bs, prm)
+    yield_and_flow(x[0], x[1], x[2], fab, prm[16], search, 0, theta, pl, yf)
+    n0 = yf[YF_N]
+    n1 = yf[YF_N + 1]
+    n2 = yf[YF_N + 2]
+    cn0 = (bulk + shear) * n0 + (bulk - shear) * n1
+    cn1 = (bulk - shear) * n0 + (bulk + shear) * n1
+    cn2 = shear * n2
+    e = c_n * np.exp(-dgam * yf[YF_TR])
+    inv = 1.0 / s_ref
+    res[0] = (x[0] - ttr[0] + dgam * cn0) * inv
+    res[1] = (x[1] - ttr[1] + dgam * cn1) * inv
+    res[2] = (x[2] - ttr[2] + dgam * cn2) * inv
+    res[3] = yf[YF_F] * inv
+    res[4] = c - e
+    # Jacobian: rows of C N_σ and C N_c.
+    for j in range(3):
+        ns0 = yf[YF_NS + j]
+        ns1 = yf[YF_NS + 3 + j]
+        ns2 = yf[YF_NS + 6 + j]
+        jac[0, j] = ((1.0 if j == 0 else 0.0) + dgam * ((bulk + shear) * ns0 + (bulk - shear) * ns1)) * inv
+        jac[1, j] = ((1.0 if j == 1 else 0.0) + dgam * ((bulk - shear) * ns0 + (bulk + shear) * ns1)) * inv
+        jac[2, j] = ((1.0 if j == 2 else 0.0) + dgam * shear * ns2) * inv
+        jac[3, j] = yf[YF_FS + j] * inv
+        jac[4, j] = e * dgam * yf[YF_TRS + j]
+    nc0 = yf[YF_NC]
+    nc1 = yf[YF_NC + 1]
+    nc2 = yf[YF_NC + 2]
+    jac[0, 3] = cn0 * inv
+    jac[1, 3] = cn1 * inv
+    jac[2, 3] = cn2 * inv
+    jac[3, 3] = 0.0
+    jac[4, 3] = e * yf[YF_TR]
+    jac[0, 4] = dgam * ((bulk + shear) * nc0 + (bulk - shear) * nc1) * inv
+    jac[1, 4] = dgam * ((bulk - shear) * nc0 + (bulk + shear) * nc1) * inv
+    jac[2, 4] = dgam * shear * nc2 * inv
+    jac[3, 4] = yf[YF_FC] * inv
+    jac[4, 4] = 1.0 + e * dgam * yf[YF_TRC]
+    worst = 0.0
+    for i in range(5):
+        worst = max(worst, abs(res[i]))
+    return worst
+
+
+@njit(cache=True, error_model="numpy")
+def _dilatancy_range(c, a, bc, bs, prm):
+    """(sin ψ̄, sin ψ_min) at c: the isotropic part of ψ(θ) and its smallest value over planes."""
+    phi0, pc, ps, psi0, qc, qs, _, _, phi_lo, phi_hi = fabric_terms(c, a, bc, bs, prm)
+    phi = min(max(phi0, phi_lo), phi_hi)
+    amp = np.hypot(qc, qs)
+    return np.sin(min(max(psi0, -phi), phi)), np.sin(max(psi0 - amp, -phi_hi))
+
+
+@njit(cache=True, error_model="numpy")
+def _initial_guess(ttr, c_n, a, bc, bs, prm, x, theta):
+    """Tier 1's closed-form coaxial return with the isotropic part of φ(θ), ψ(θ) at c_n.
+
+    Also sets the planes to tier 1's, θ = α ± (π/4 - φ/2) (α: major principal direction).
+    """
+    bulk = prm[0]
+    shear = prm[1]
+    phi0, _, _, psi0, _, _, _, _, phi_lo, phi_hi = fabric_terms(c_n, a, bc, bs, prm)
+    phi = min(max(phi0, phi_lo), phi_hi)
+    psi = min(max(psi0, -phi), phi)
+    m = 0.5 * (ttr[0] + ttr[1])
+    d = 0.5 * (ttr[0] - ttr[1])
+    r = np.hypot(d, ttr[2])
+    ca = d / r if r > 0.0 else 1.0
+    sa = ttr[2] / r if r > 0.0 else 0.0
+    sphi = np.sin(phi)
+    spsi = np.sin(psi)
+    dgam = max((r + sphi * m) / (shear + bulk * sphi * spsi), 0.0)   # m = -P
+    dgam = min(dgam, 0.5 * r / shear)
+    r1 = r - shear * dgam
+    m1 = m - bulk * spsi * dgam
+    x[0] = m1 + r1 * ca
+    x[1] = m1 - r1 * ca
+    x[2] = r1 * sa
+    # Same plastic strain with this tier's slip normalization: ε1 - ε2 = Δγ cos(φ - ψ̂).
+    psi_hat = np.arctan2(spsi * np.cos(phi), 1.0 - spsi * sphi)
+    x[3] = dgam / np.cos(phi - psi_hat)
+    x[4] = c_n * np.exp(-dgam * spsi)
+    alpha = 0.5 * np.arctan2(sa, ca)
+    theta[0] = alpha + 0.25 * np.pi - 0.5 * phi
+    theta[1] = alpha - 0.25 * np.pi + 0.5 * phi
+
+
+@njit(cache=True, error_model="numpy")
+def _cutting_plane_guess(ttr, c_n, fab, prm, x, theta, pl, yf):
+    """Replace the coaxial guess by one cutting-plane step from σ_tr when it is closer.
+
+    With f, ∂f/∂σ and N at σ_tr (planes at their maxima, from the elastic check):
+    Δγ = f_tr / (∂f/∂σ · C N), σ = σ_tr - Δγ C N, c = c_n exp(-Δγ tr N) — first order in
+    the step, so small increments start the Newton iteration O(Δε²) from the solution.
+    """
+    bulk = prm[0]
+    shear = prm[1]
+    yield_and_flow(ttr[0], ttr[1], ttr[2], fab, prm[16], False, 0, theta, pl, yf)
+    n0 = yf[YF_N]
+    n1 = yf[YF_N + 1]
+    n2 = yf[YF_N + 2]
+    cn0 = (bulk + shear) * n0 + (bulk - shear) * n1
+    cn1 = (bulk - shear) * n0 + (bulk + shear) * n1
+    cn2 = shear * n2
+    den = yf[YF_FS] * cn0 + yf[YF_FS + 1] * cn1 + yf[YF_FS + 2] * cn2
+    if not den > 0.0:
+        return
+    dgam = yf[YF_F] / den
+    x[0] = ttr[0] - dgam * cn0
+    x[1] = ttr[1] - dgam * cn1
+    x[2] = ttr[2] - dgam * cn2
+    x[3] = dgam
+    x[4] = c_n * np.exp(-dgam * yf[YF_TR])
+
+
+@njit(cache=True, error_model="numpy")
+def _face_return(ttr, c_n, a, bc, bs, prm, x, theta, pl, yf, res, jac, piv, dx, xt, tt, dth,
+                 s_ref):
+    """Newton on the face residuals from ``x``; True when converged to a valid face point.
+
+    The planes move with the condensed step δθ_k + θ_σ·dσ + θ_c dc (fast: no inner plane
+    search); the line search backtracks on max |residual|. If it cannot progress (near the
+    apex the planes are ill-conditioned), the solve continues with the planes re-searched
+    to their exact maxima at every evaluation. On success ``jac`` holds the LU factors of
+    the Jacobian at the solution and ``yf`` the yield/flow terms there.
+    """
+    search = False
+    err = _residual(x, ttr, c_n, a, bc, bs, prm, theta, search, pl, yf, res, jac, s_ref)
+    for _ in range(NEWTON_MAXIT):
+        if not np.isfinite(err):
+            return False
+        if not _lu(jac, piv):
+            return False
+        if err <= NEWTON_TOL and max(abs(pl[0, PL_DT]), abs(pl[1, PL_DT])) <= PLANE_STEP_TOL:
+            p = -0.5 * (x[0] + x[1])
+            return x[3] >= 0.0 and p > 0.0
+        for i in range(5):
+            dx[i] = -res[i]
+        _lu_solve(jac, piv, dx)
+        for k in range(2):
+            dth[k] = (pl[k, PL_DT] + pl[k, PL_TS] * dx[0] + pl[k, PL_TS + 1] * dx[1]
+                      + pl[k, PL_TS + 2] * dx[2] + pl[k, PL_TC] * dx[4])
+        step = 1.0
+        accepted = False
+        for _ in range(30):
+            for i in range(5):
+                xt[i] = x[i] + step * dx[i]
+            tt[0] = theta[0] + step * dth[0]
+            tt[1] = theta[1] + step * dth[1]
+            err_t = _residual(xt, ttr, c_n, a, bc, bs, prm, tt, search, pl, yf, res, jac, s_ref)
+            if err_t < err or err_t <= NEWTON_TOL:
+                accepted = True
+                break
+            step *= 0.5
+            if step < 0.1 and not search:
+                break
+        if accepted:
+            for i in range(5):
+                x[i] = xt[i]
+            theta[0] = tt[0]
+            theta[1] = tt[1]
+            err = err_t
+        elif not search:
+            search = True
+            err = _residual(x, ttr, c_n, a, bc, bs, prm, theta, search, pl, yf, res, jac, s_ref)
+        else:
+            return False
+    return False
+
+
+# --------------------------------------------------------------------------- one point
+
+@njit(cache=True, error_model="numpy")
+def isotropic_stiffness_into(bulk, shear, out):
+    """The regularization's Voigt stiffness C into ``out`` (interim copy until main has it)."""
+    out[:, :] = 0.0
+    out[0, 0] = bulk + shear
+    out[1, 1] = bulk + shear
+    out[0, 1] = bulk - shear
+    out[1, 0] = bulk - shear
+    out[2, 2] = shear
+
+
+@njit(cache=True, error_model="numpy")
+def _inputs_finite(stress_n, state_n, dstrain, dspin, i):
+    ok = np.isfinite(dspin[i])
+    for j in range(3):
+        ok = ok and np.isfinite(stress_n[i, j]) and np.isfinite(dstrain[i, j])
+    for j in range(state_n.shape[1]):
+        ok = ok and np.isfinite(state_n[i, j])
+    return ok
+
+
+@njit(cache=True, error_model="numpy")
+def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status,
+           ttr, x, theta, pl, yf, res, jac, piv, dx, xt, tt, dth):
+    bulk = prm[0]
+    shear = prm[1]
+    c_n = state_n[i, 1]
+    if not (0.0 < c_n < 1.0):
+        status[i] = STATUS_FAILED
+        return
+    a = state_n[i, 2]
+    rxx, ryy, rxy = rotate(stress_n[i, 0], stress_n[i, 1], stress_n[i, 2], dspin[i])
+    bc, bs = rotate_fabric(state_n[i, 3], state_n[i, 4], dspin[i])
+    dexx = dstrain[i, 0]
+    deyy = dstrain[i, 1]
+    dgxy = dstrain[i, 2]
+    ttr[0] = rxx + (bulk + shear) * dexx + (bulk - shear) * deyy
+    ttr[1] = ryy + (bulk - shear) * dexx + (bulk + shear) * deyy
+    ttr[2] = rxy + shear * dgxy
+    _initial_guess(ttr, c_n, a, bc, bs, prm, x, theta)
+    fab = fabric_terms(c_n, a, bc, bs, prm)
+    f_tr = yield_value(ttr[0], ttr[1], ttr[2], fab, prm[16], int(prm[17]), theta)
+    state[i, 0] = state_n[i, 0]
+    state[i, 1] = c_n
+    state[i, 2] = a
+    state[i, 3] = bc
+    state[i, 4] = bs
+    if f_tr <= 0.0:
+        stress[i, 0] = ttr[0]
+        stress[i, 1] = ttr[1]
+        stress[i, 2] = ttr[2]
+        isotropic_stiffness_into(bulk, shear, tangent[i])
+        status[i] = STATUS_ELASTIC
+        return
+    s_ref = np.hypot(0.5 * (ttr[0] + ttr[1]), np.hypot(0.5 * (ttr[0] - ttr[1]), ttr[2]))
+    p_tr = -0.5 * (ttr[0] + ttr[1])
+    r_tr = np.hypot(0.5 * (ttr[0] - ttr[1]), ttr[2])
+    # The apex first, as tier 1: at c_apex, C⁻¹σ_tr at least as dilatant as the flow.
+    c_apex = c_n * np.exp(p_tr / bulk)
+    spsi_iso, spsi_min = _dilatancy_range(c_apex, a, bc, bs, prm)
+    face = False
+    apex = shear * p_tr + bulk * spsi_iso * r_tr <= 0.0
+    if not apex:
+        # Near the surface (the common case in a converging global iteration) one cutting-
+        # plane step from σ_tr is the better start; otherwise, or if that solve fails,
+        # tier 1's coaxial return.
+        near = f_tr <= CUTTING_PLANE_RANGE * s_ref
+        if near:
+            _cutting_plane_guess(ttr, c_n, fab, prm, x, theta, pl, yf)
+        face = _face_return(ttr, c_n, a, bc, bs, prm, x, theta, pl, yf, res, jac, piv, dx, xt,
+                            tt, dth, s_ref)
+        if near and not face:
+            _initial_guess(ttr, c_n, a, bc, bs, prm, x, theta)
+            face = _face_return(ttr, c_n, a, bc, bs, prm, x, theta, pl, yf, res, jac, piv, dx,
+                                xt, tt, dth, s_ref)
+        # No face point found: the material separates if some plane's flow is less
+        # dilatant than C⁻¹σ_tr; otherwise the local solve failed.
+        apex = not face and shear * p_tr + bulk * spsi_min * r_tr <= 0.0
+    if face:
+        for j in range(3):
+            stress[i, j] = x[j]
+        c1 = x[4]
+        dgam = x[3]
+        pxx = dgam * yf[YF_N]
+        pyy = dgam * yf[YF_N + 1]
+        pgg = dgam * yf[YF_N + 2]
+        # Tangent: solve J X = [C/s_ref; 0; 0], column by column.
+        for j in range(3):
+            for k in range(5):
+                dx[k] = 0.0
+            if j < 2:
+                dx[0] = (bulk + shear if j == 0 else bulk - shear) / s_ref
+                dx[1] = (bulk - shear if j == 0 else bulk + shear) / s_ref
+            else:
+                dx[2] = shear / s_ref
+            _lu_solve(jac, piv, dx)
+            for k in range(3):
+                tangent[i, k, j] = dx[k]
+        status[i] = STATUS_FACE
+    elif apex:
+        stress[i, :] = 0.0
+        tangent[i, :, :] = 0.0
+        m_tr = 0.5 * (ttr[0] + ttr[1])
+        pxx = 0.5 * m_tr / bulk + 0.25 * (ttr[0] - ttr[1]) / shear
+        pyy = 0.5 * m_tr / bulk - 0.25 * (ttr[0] - ttr[1]) / shear
+        pgg = ttr[2] / shear
+        c1 = c_apex
+        status[i] = STATUS_APEX
+    else:
+        status[i] = STATUS_FAILED
+        return
+    state[i, 0] = state_n[i, 0] + np.hypot(pxx - pyy, pgg)
+    state[i, 1] = c1
+    a1, bc1, bs1, projected = fabric_step(a, bc, bs, pxx, pyy, pgg, c1, int(prm[18]), prm[19],
+                                          prm[20], prm[21], prm[22], prm[23], prm[24])
+    state[i, 2] = a1
+    state[i, 3] = bc1
+    state[i, 4] = bs1
+    if projected:
+        status[i] = STATUS_PROJECTED
+
+
+@njit(cache=True, error_model="numpy")
+def _finish(stress_n, state_n, stress, state, tangent, status, i, bulk, shear):
+    """The no-NaN rule: a failed or non-finite point returns its inputs (status -1)."""
+    ok = status[i] != STATUS_FAILED
+    for j in range(3):
+        ok = ok and np.isfinite(stress[i, j])
+        for k in range(3):
+            ok = ok and np.isfinite(tangent[i, j, k])
+    for j in range(state.shape[1]):
+        ok = ok and np.isfinite(state[i, j])
+    if not ok:
+        status[i] = STATUS_FAILED
+        stress[i, :] = stress_n[i, :]
+        state[i, :] = state_n[i, :]
+        isotropic_stiffness_into(bulk, shear, tangent[i])
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def update_points(stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status):
+    """Tier 2 update of every point (layout of ``prm``: module doc). Writes the outputs."""
+    n = stress_n.shape[0]
+    n_chunks = min(n, 64)
+    for chunk in prange(n_chunks):
+        # Per-chunk scratch: no allocation per point.
+        ttr = np.empty(3)
+        x = np.empty(5)
+        theta = np.empty(2)
+        pl = np.empty((2, N_PL))
+        yf = np.empty(N_YF)
+        res = np.empty(5)
+        jac = np.empty((5, 5))
+        piv = np.empty(5, dtype=np.int64)
+        dx = np.empty(5)
+        xt = np.empty(5)
+        tt = np.empty(2)
+        dth = np.empty(2)
+        for i in range(chunk * n // n_chunks, (chunk + 1) * n // n_chunks):
+            if _inputs_finite(stress_n, state_n, dstrain, dspin, i):
+                _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent,
+                       status, ttr, x, theta, pl, yf, res, jac, piv, dx, xt, tt, dth)
+            else:
+                status[i] = STATUS_FAILED
+            _finish(stress_n, state_n, stress, state, tangent, status, i, prm[0], prm[1])
+
+
+# --------------------------------------------------------------------------- parameters (interim)
+
+@dataclass(frozen=True)
+class Tier2Section:
+    """The ``[tier2]`` parameters (angles in degrees; the kernel array is in radians).
+
+    a0..a3, b0..b3: seed eq. 1.8 for φ(θ) and ψ(θ) (a1, b1 per unit A; a2, b2 per unit B);
+    the c-dependence φ'(c - c*), ψ'(c - c*) and the clamps come from tier 1's section.
+    """
+
+    a0_deg: float
+    a1_deg: float = 0.0
+    a2_deg: float = 0.0
+    a3_deg: float = 0.0
+    b0_deg: float = 0.0
+    b1_deg: float = 0.0
+    b2_deg: float = 0.0
+    b3_deg: float = 0.0
+    sharpness: float = 50.0
+    n_search: int = 8
+    fabric_law: int = LAW_BALANCE
+    kappa_a: float = 0.394
+    k_c: float = 1.776
+    k_o: float = 1.0
+    z_crit: float = 3.0
+    b_ratio_crit: float = 0.25
+    relax_rate: float = 10.0
+
+    def __post_init__(self):
+        if not 0.0 < self.a0_deg < 90.0:
+            raise ValueError(f"[tier2] a0_deg = {self.a0_deg:g} is outside (0, 90) deg")
+        if not self.sharpness > 0.0:
+            raise ValueError(f"[tier2] sharpness = {self.sharpness:g} is outside (0, inf)")
+        if self.fabric_law not in (LAW_BALANCE, LAW_RELAXATION):
+            raise ValueError(f"[tier2] fabric_law = {self.fabric_law!r} is not 0 (balance) or "
+                             f"1 (relaxation)")
+        a_c = self.z_crit / math.pi
+        if not (0.0 < a_c and admissibility_margin(a_c, self.b_ratio_crit * a_c) > 0.0
+                and 0.0 <= self.b_ratio_crit < 1.0):
+            raise ValueError(f"[tier2] z_crit = {self.z_crit:g}, b_ratio_crit = "
+                             f"{self.b_ratio_crit:g} is not strictly admissible (0 < z_crit, "
+                             f"0 <= b_ratio_crit < 1, z_crit/6 + (sqrt(3)/4) b z_crit/pi < 1; "
+                             f"largest z_crit at b = 0: 6, at B = A: {math.pi * A_EDGE:.3f})")
+
+    def array(self) -> tuple[float, ...]:
+        r = math.radians
+        return (r(self.a0_deg), r(self.a1_deg), r(self.a2_deg), r(self.a3_deg),
+                r(self.b0_deg), r(self.b1_deg), r(self.b2_deg), r(self.b3_deg),
+                self.sharpness, float(self.n_search), float(self.fabric_law), self.kappa_a,
+                self.k_c, self.k_o, self.z_crit / math.pi, self.b_ratio_crit, self.relax_rate)
+
+
+def tier2_array(section: Tier2Section, *, bulk: float, shear: float, phi_star_deg: float,
+                dphi_dc_deg: float, dpsi_dc_deg: float, c_star: float,
+                phi_min_deg: float = 1.0, phi_max_deg: float = 60.0) -> np.ndarray:
+    """The kernel array (module doc) from the regularization, tier-1 and tier-2 values."""
+    r = math.radians
+    head = (bulk, shear, r(phi_star_deg), r(dphi_dc_deg), r(dpsi_dc_deg), c_star,
+            r(phi_min_deg), r(phi_max_deg))
+    prm = np.array(head + section.array(), dtype=np.float64)
+    assert prm.size == N_PRM
+    return prm
+
+
+def update(stress_n, state_n, dstrain, dspin, prm):
+    """Allocate outputs and run :func:`update_points` (interim, until tiers.update has tier 2)."""
+    stress_n = np.ascontiguousarray(stress_n, dtype=np.float64)
+    n = stress_n.shape[0]
+    state_n = np.ascontiguousarray(state_n, dtype=np.float64)
+    dstrain = np.ascontiguousarray(dstrain, dtype=np.float64)
+    dspin = np.ascontiguousarray(dspin, dtype=np.float64)
+    stress = np.empty((n, 3))
+    state = np.empty((n, 5))
+    tangent = np.empty((n, 3, 3))
+    status = np.empty(n, dtype=np.int8)
+    update_points(stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status)
+    return stress, state, tangent, status
+
