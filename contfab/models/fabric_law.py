@@ -95,10 +95,23 @@ def positive_part_moments(m, r):
 
 @njit(cache=True, error_model="numpy")
 def rotate_fabric(bc, bs, dspin):
-    """(Bc, Bs) after a rigid rotation by ``dspin``: θp += dspin, B unchanged."""
+    """(Bc, Bs) after a rigid rotation by ``dspin``: θp += dspin, B unchanged.
+
+    Round-off can make the rotated B an ulp larger, which would push a fabric on the bound
+    B = A out of the admissible set: such growth is trimmed, so B never increases (a
+    subnormal B, below any physical meaning and without ulps to trim, becomes 0).
+    """
     c = np.cos(2.0 * dspin)
     s = np.sin(2.0 * dspin)
-    return c * bc - s * bs, s * bc + c * bs
+    rc = c * bc - s * bs
+    rs = s * bc + c * bs
+    b = np.hypot(bc, bs)
+    for _ in range(4):
+        if np.hypot(rc, rs) <= b:
+            return rc, rs
+        rc *= 1.0 - 2.0 ** -52
+        rs *= 1.0 - 2.0 ** -52
+    return 0.0, 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -138,10 +151,10 @@ def _solve3(a00, a01, a02, a10, a11, a12, a20, a21, a22, b0, b1, b2):
 
 
 @njit(cache=True, error_model="numpy")
-def balance_step(a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o):
-    """One step of the projected balance law (law 0, module doc) for the increment Δεp.
+def balance_system(a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o):
+    """The step's linear system X q_{n+1} = y of law 0 (module doc), rows divided by M.
 
-    Returns the unprojected (A, Bc, Bs) at the end of the step.
+    Returns the 9 entries of X (row-major) and the 3 of y.
     """
     m = 0.5 * (dexx + deyy)
     dx = 0.5 * (dexx - deyy)
@@ -161,7 +174,7 @@ def balance_step(a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o):
     # Rows divided by the mass M = diag(π, π/2, π/2): X q_{n+1} = q_n + rhs.
     r0 = 1.0 / np.pi
     r1 = 2.0 / np.pi
-    return _solve3(
+    return (
         1.0 + r0 * (g * q00 * s0 + k_o * p00), r0 * (g * q01 * s1 + k_o * p01),
         r0 * (g * q02 * s1 + k_o * p02),
         r1 * (g * q01 * s0 + k_o * p01), 1.0 + r1 * (g * q11 * s1 + k_o * p11),
@@ -171,6 +184,14 @@ def balance_step(a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o):
         a + r0 * g * q00,
         bc + r1 * g * q01 + 2.0 * kappa_a * a * dx,
         bs + r1 * g * q02 + 2.0 * kappa_a * a * dy)
+
+
+@njit(cache=True, error_model="numpy")
+def balance_step(a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o):
+    """One step of the projected balance law (law 0): the unprojected (A, Bc, Bs) after it."""
+    x00, x01, x02, x10, x11, x12, x20, x21, x22, y0, y1, y2 = balance_system(
+        a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o)
+    return _solve3(x00, x01, x02, x10, x11, x12, x20, x21, x22, y0, y1, y2)
 
 
 @njit(cache=True, error_model="numpy")
