@@ -6,6 +6,7 @@ from hypothesis import given, settings, strategies as st
 from conftest import stress_at
 from contfab.models import fabric_model as fm
 from contfab.models import slip_planes as sp
+from contfab.models import fabric_law
 from contfab.models.fabric_law import LAW_BALANCE, LAW_RELAXATION, rotate_fabric
 from contfab.tensors import rotate
 from dem.conventions import admissibility_margin
@@ -91,13 +92,16 @@ def test_face_return_solves_backward_euler_and_tangent_matches_differences(
     c_mat = np.array([[bulk + shear, bulk - shear, 0], [bulk - shear, bulk + shear, 0],
                       [0, 0, shear]])
     trial = np.array(rotate(*stress, dw)) + c_mat @ de
-    bc, bs = rotate_fabric(state[3], state[4], dw)
     scale = np.hypot(-0.5 * (trial[0] + trial[1]), np.hypot(0.5 * (trial[0] - trial[1]), trial[2]))
-    # f(σ_{n+1}; fabric at the start of the step, c_{n+1}) = 0 and c_{n+1} = c_n exp(-tr Δεp).
-    assert _yield(prm, s, q[1], state[2], bc, bs) == pytest.approx(0.0, abs=1e-11 * scale)
+    # Backward Euler: f(σ_{n+1}; q_{n+1}, c_{n+1}) = 0 with the fabric at the END of the step,
+    # c_{n+1} = c_n exp(-tr Δεp), q_{n+1} = Φ(rotated q_n, Δεp, c_{n+1}), Δεp = C⁻¹(σ_tr - σ).
+    assert _yield(prm, s, *q[1:]) == pytest.approx(0.0, abs=1e-11 * scale)
     dep = np.linalg.solve(c_mat, trial - s)
     assert q[1] == pytest.approx(c * np.exp(-(dep[0] + dep[1])), rel=1e-12)
     assert q[0] == pytest.approx(np.hypot(dep[0] - dep[1], dep[2]), rel=1e-9, abs=1e-15)
+    fabric, _ = fabric_law.drive_fabric(state[2:].copy(), dep[None, :], np.array([dw]),
+                                        np.array([q[1]]), LAW_BALANCE, *prm[19:25])
+    assert q[2:] == pytest.approx(fabric[-1], abs=1e-10)
     # Consistent tangent against central differences of the whole update.
     h = 1e-6 * max(np.abs(de).max(), 1e-4)
     fd = np.empty((3, 3))

@@ -110,12 +110,20 @@ def test_derivatives_match_central_differences(tier2_prm, ratio, alpha, b, theta
         assert yf[sp.YF_NS + j:sp.YF_NS + 9:3] == pytest.approx(fd[sp.YF_N:sp.YF_N + 3],
                                                                 rel=1e-6, abs=1e-6)
         assert yf[sp.YF_TRS + j] == pytest.approx(fd[sp.YF_TR], rel=1e-6, abs=1e-6)
-    dp, _ = _flow(prm, s, c + h, *fab_args, n_search=16)
-    dm, _ = _flow(prm, s, c - h, *fab_args, n_search=16)
-    fd = (dp - dm) / (2 * h)
-    assert yf[sp.YF_FC] == pytest.approx(fd[sp.YF_F], abs=1e-7)
-    assert yf[sp.YF_NC:sp.YF_NC + 3] == pytest.approx(fd[sp.YF_N:sp.YF_N + 3], abs=1e-6)
-    assert yf[sp.YF_TRC] == pytest.approx(fd[sp.YF_TR], abs=1e-6)
+    # c and the fabric act through the angle coefficients p (slip_planes.fabric_terms_jacobian)
+    dpz = np.empty((sp.N_P, 4))
+    sp.fabric_terms_jacobian(prm, dpz)
+    z0 = np.array([c, *fab_args])
+    for z in range(4):
+        e = np.zeros(4)
+        e[z] = h
+        dp, _ = _flow(prm, s, *(z0 + e), n_search=16)
+        dm, _ = _flow(prm, s, *(z0 - e), n_search=16)
+        fd = (dp - dm) / (2 * h)
+        assert yf[sp.YF_FP:sp.YF_FP + 3] @ dpz[:3, z] == pytest.approx(fd[sp.YF_F], abs=1e-7)
+        assert yf[sp.YF_NP:sp.YF_NP + 18].reshape(3, 6) @ dpz[:, z] == pytest.approx(
+            fd[sp.YF_N:sp.YF_N + 3], rel=1e-6, abs=1e-6)
+        assert yf[sp.YF_TRP:sp.YF_TRP + 6] @ dpz[:, z] == pytest.approx(fd[sp.YF_TR], abs=1e-6)
     # A cone: f homogeneous of degree 1 and N of degree 0 in σ (Euler's relations).
     assert yf[sp.YF_FS:sp.YF_FS + 3] @ s == pytest.approx(f, abs=1e-13)
     assert yf[sp.YF_NS:sp.YF_NS + 9].reshape(3, 3) @ s == pytest.approx(np.zeros(3), abs=1e-12)

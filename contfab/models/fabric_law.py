@@ -79,18 +79,37 @@ def positive_part_moments(m, r):
     integrand is positive): I0 = 2 m x0 + 2 r sin x0, I1 = 2 m sin x0 + r (x0 + sin x0 cos x0),
     I2 = m sin 2x0 + r (sin x0 + sin 3x0 / 3). x0 = π (all positive) gives (2πm, πr, 0).
     """
+    i = _moments(m, r)
+    return i[0], i[1], i[2]
+
+
+@njit(cache=True, error_model="numpy")
+def _moments(m, r):
+    """I0, I1, I2 (:func:`positive_part_moments`), I1/r, I2/r and ∂I_k/∂m, ∂I_k/∂r.
+
+    Leibniz: the integrand vanishes at ±x0, so ∂I_k/∂m = ∫ cos kx and ∂I_k/∂r = ∫ cos x cos kx
+    over the arc. I1/r and I2/r stay bounded as r -> 0 (returned for the direction terms).
+    """
     if r > 0.0:
         x0 = np.arccos(min(max(-m / r, -1.0), 1.0))
     elif m > 0.0:
         x0 = np.pi
     else:
-        return 0.0, 0.0, 0.0
+        x0 = 0.0
     s0 = np.sin(x0)
     c0 = np.cos(x0)
+    s3 = np.sin(3.0 * x0)
     i0 = 2.0 * m * x0 + 2.0 * r * s0
     i1 = 2.0 * m * s0 + r * (x0 + s0 * c0)
-    i2 = 2.0 * m * s0 * c0 + r * (s0 + np.sin(3.0 * x0) / 3.0)
-    return i0, i1, i2
+    i2 = 2.0 * m * s0 * c0 + r * (s0 + s3 / 3.0)
+    if r > 0.0:
+        j1 = i1 / r
+        j2 = i2 / r
+    else:
+        j1 = x0
+        j2 = 0.0
+    return (i0, i1, i2, j1, j2, 2.0 * x0, 2.0 * s0, 2.0 * s0 * c0,
+            2.0 * s0, x0 + s0 * c0, s0 + s3 / 3.0)
 
 
 @njit(cache=True, error_model="numpy")
@@ -115,114 +134,204 @@ def rotate_fabric(bc, bs, dspin):
 
 
 @njit(cache=True, error_model="numpy")
-def _gram_positive(m, dx, dy):
-    """The six distinct ∫_0^π [d_n]+ w_i w_j dθ, w = (1, cos 2θ, sin 2θ), d_n = m + dx c2 + dy s2.
+def _gram_positive(m, dx, dy, gram, dgram):
+    """∫_0^π [d_n]+ w_i w_j dθ, w = (1, cos 2θ, sin 2θ), d_n = m + dx c2 + dy s2, and their
+    derivatives in (m, dx, dy).
 
-    Returned as (P00, P01, P02, P11, P12, P22).
+    ``gram`` (3, 3) ← P; ``dgram`` (3, 3, 3) ← ∂P_ij/∂(m, dx, dy)_v at [i, j, v].
     """
     r = np.hypot(dx, dy)
-    i0, i1, i2 = positive_part_moments(m, r)
+    i0, i1, i2, j1, j2, i0m, i1m, i2m, i0r, i1r, i2r = _moments(m, r)
     if r > 0.0:
-        c2b = dx / r
-        s2b = dy / r
+        c = dx / r
+        s = dy / r
     else:
-        c2b = 1.0
-        s2b = 0.0
-    # ∫_0^π F(2θ) dθ = ½ ∫_{-π}^{π} F(x + 2β) dx, 2β the direction of (dx, dy).
+        c = 1.0
+        s = 0.0
+    c4 = c * c - s * s
+    s4 = 2.0 * c * s
+    # ∫_0^π F(2θ) dθ = ½ ∫_{-π}^{π} F(x + 2β) dx, 2β the direction of (dx, dy): the k-th
+    # harmonic picks I_k (cos 2kβ, sin 2kβ). Derivatives: ∂r = (c, s), ∂(2β) = (-s, c)/r.
     m0 = 0.5 * i0
-    m1c = 0.5 * i1 * c2b
-    m1s = 0.5 * i1 * s2b
-    m2c = 0.5 * i2 * (c2b * c2b - s2b * s2b)
-    m2s = 0.5 * i2 * (2.0 * c2b * s2b)
-    return m0, m1c, m1s, 0.5 * (m0 + m2c), 0.5 * m2s, 0.5 * (m0 - m2c)
+    m1c = 0.5 * i1 * c
+    m1s = 0.5 * i1 * s
+    m2c = 0.5 * i2 * c4
+    m2s = 0.5 * i2 * s4
+    d_m0 = (0.5 * i0m, 0.5 * i0r * c, 0.5 * i0r * s)
+    d_m1c = (0.5 * i1m * c, 0.5 * (i1r * c * c + j1 * s * s), 0.5 * (i1r - j1) * c * s)
+    d_m1s = (0.5 * i1m * s, 0.5 * (i1r - j1) * c * s, 0.5 * (i1r * s * s + j1 * c * c))
+    d_m2c = (0.5 * i2m * c4, 0.5 * (i2r * c * c4 + 2.0 * j2 * s4 * s),
+             0.5 * (i2r * s * c4 - 2.0 * j2 * s4 * c))
+    d_m2s = (0.5 * i2m * s4, 0.5 * (i2r * c * s4 - 2.0 * j2 * c4 * s),
+             0.5 * (i2r * s * s4 + 2.0 * j2 * c4 * c))
+    gram[0, 0] = m0
+    gram[0, 1] = gram[1, 0] = m1c
+    gram[0, 2] = gram[2, 0] = m1s
+    gram[1, 1] = 0.5 * (m0 + m2c)
+    gram[2, 2] = 0.5 * (m0 - m2c)
+    gram[1, 2] = gram[2, 1] = 0.5 * m2s
+    for v in range(3):
+        dgram[0, 0, v] = d_m0[v]
+        dgram[0, 1, v] = dgram[1, 0, v] = d_m1c[v]
+        dgram[0, 2, v] = dgram[2, 0, v] = d_m1s[v]
+        dgram[1, 1, v] = 0.5 * (d_m0[v] + d_m2c[v])
+        dgram[2, 2, v] = 0.5 * (d_m0[v] - d_m2c[v])
+        dgram[1, 2, v] = dgram[2, 1, v] = 0.5 * d_m2s[v]
+
+
+N_WORK = 99
+"""Length of the scratch array of :func:`fabric_step`."""
+MASS = (np.pi, 0.5 * np.pi, 0.5 * np.pi)
+STERIC = (np.pi / 6.0, SQRT3_4, SQRT3_4)
 
 
 @njit(cache=True, error_model="numpy")
-def _solve3(a00, a01, a02, a10, a11, a12, a20, a21, a22, b0, b1, b2):
-    """Cramer's rule for a 3x3 system (used only where det is bounded away from 0)."""
-    c00 = a11 * a22 - a12 * a21
-    c01 = a12 * a20 - a10 * a22
-    c02 = a10 * a21 - a11 * a20
-    det = a00 * c00 + a01 * c01 + a02 * c02
-    x0 = (b0 * c00 + a01 * (b2 * a12 - b1 * a22) + a02 * (b1 * a21 - b2 * a11)) / det
-    x1 = (a00 * (b1 * a22 - b2 * a12) + b0 * c01 + a02 * (b2 * a10 - b1 * a20)) / det
-    x2 = (a00 * (a11 * b2 - a21 * b1) + a01 * (b1 * a20 - b2 * a10) + b0 * c02) / det
-    return x0, x1, x2
+def _d_moment(i, j, v):
+    """∂/∂(m, dx, dy)_v of ∫_0^π d_n w_i w_j dθ (exact; d_n is linear in (m, dx, dy))."""
+    if v == 0:
+        if i == j:
+            return np.pi if i == 0 else 0.5 * np.pi
+        return 0.0
+    k = v          # dx couples (0, 1), dy couples (0, 2)
+    if (i == 0 and j == k) or (j == 0 and i == k):
+        return 0.5 * np.pi
+    return 0.0
 
 
 @njit(cache=True, error_model="numpy")
-def balance_system(a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o):
-    """The step's linear system X q_{n+1} = y of law 0 (module doc), rows divided by M.
+def balance_system(a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o, x, y, dxs, dys, gram,
+                   dgram):
+    """The step's linear system X q_{n+1} = y of law 0 (module doc), rows divided by M, and
+    its derivatives in the increment and c.
 
-    Returns the 9 entries of X (row-major) and the 3 of y.
+    ``x`` (3, 3), ``y`` (3,); ``dxs`` (4, 3, 3), ``dys`` (4, 3): derivatives in
+    v = (Δεxx, Δεyy, Δγxy, c); ``gram`` (3, 3), ``dgram`` (3, 3, 3) scratch.
     """
     m = 0.5 * (dexx + deyy)
     dx = 0.5 * (dexx - deyy)
     dy = 0.5 * dgxy
-    p00, p01, p02, p11, p12, p22 = _gram_positive(m, dx, dy)
-    # [-d_n]+ = [d_n]+ - d_n; the moments of d_n itself are exact trigonometric integrals.
-    hp = 0.5 * np.pi
-    q00 = p00 - np.pi * m
-    q01 = p01 - hp * dx
-    q02 = p02 - hp * dy
-    q11 = p11 - hp * m
-    q12 = p12
-    q22 = p22 - hp * m
+    _gram_positive(m, dx, dy, gram, dgram)
     g = k_c * 4.0 * c / np.pi
-    s0 = np.pi / 6.0
-    s1 = SQRT3_4
-    # Rows divided by the mass M = diag(π, π/2, π/2): X q_{n+1} = q_n + rhs.
-    r0 = 1.0 / np.pi
-    r1 = 2.0 / np.pi
-    return (
-        1.0 + r0 * (g * q00 * s0 + k_o * p00), r0 * (g * q01 * s1 + k_o * p01),
-        r0 * (g * q02 * s1 + k_o * p02),
-        r1 * (g * q01 * s0 + k_o * p01), 1.0 + r1 * (g * q11 * s1 + k_o * p11),
-        r1 * (g * q12 * s1 + k_o * p12),
-        r1 * (g * q02 * s0 + k_o * p02), r1 * (g * q12 * s1 + k_o * p12),
-        1.0 + r1 * (g * q22 * s1 + k_o * p22),
-        a + r0 * g * q00,
-        bc + r1 * g * q01 + 2.0 * kappa_a * a * dx,
-        bs + r1 * g * q02 + 2.0 * kappa_a * a * dy)
+    g_c = k_c * 4.0 / np.pi
+    for i in range(3):
+        for j in range(3):
+            # [-d_n]+ = [d_n]+ - d_n: Q = P minus the exact moments of d_n.
+            qij = gram[i, j] - _d_moment(i, j, 0) * m - _d_moment(i, j, 1) * dx \
+                - _d_moment(i, j, 2) * dy
+            x[i, j] = (1.0 if i == j else 0.0) + (g * qij * STERIC[j] + k_o * gram[i, j]) / MASS[i]
+            dxs[3, i, j] = g_c * qij * STERIC[j] / MASS[i]
+            d0 = (g * (dgram[i, j, 0] - _d_moment(i, j, 0)) * STERIC[j]
+                  + k_o * dgram[i, j, 0]) / MASS[i]
+            d1 = (g * (dgram[i, j, 1] - _d_moment(i, j, 1)) * STERIC[j]
+                  + k_o * dgram[i, j, 1]) / MASS[i]
+            d2 = (g * (dgram[i, j, 2] - _d_moment(i, j, 2)) * STERIC[j]
+                  + k_o * dgram[i, j, 2]) / MASS[i]
+            # (m, dx, dy) -> Voigt: ∂exx = ½(∂m + ∂dx), ∂eyy = ½(∂m - ∂dx), ∂γ = ½ ∂dy
+            dxs[0, i, j] = 0.5 * (d0 + d1)
+            dxs[1, i, j] = 0.5 * (d0 - d1)
+            dxs[2, i, j] = 0.5 * d2
+        # creation's source γ Q_i0, and the explicit advection κa π A (0, dx, dy) / M
+        qi0 = gram[i, 0] - _d_moment(i, 0, 0) * m - _d_moment(i, 0, 1) * dx \
+            - _d_moment(i, 0, 2) * dy
+        d0 = g * (dgram[i, 0, 0] - _d_moment(i, 0, 0)) / MASS[i]
+        d1 = g * (dgram[i, 0, 1] - _d_moment(i, 0, 1)) / MASS[i]
+        d2 = g * (dgram[i, 0, 2] - _d_moment(i, 0, 2)) / MASS[i]
+        y[i] = g * qi0 / MASS[i]
+        if i == 0:
+            y[i] += a
+        elif i == 1:
+            y[i] += bc + 2.0 * kappa_a * a * dx
+            d1 += 2.0 * kappa_a * a
+        else:
+            y[i] += bs + 2.0 * kappa_a * a * dy
+            d2 += 2.0 * kappa_a * a
+        dys[0, i] = 0.5 * (d0 + d1)
+        dys[1, i] = 0.5 * (d0 - d1)
+        dys[2, i] = 0.5 * d2
+        dys[3, i] = g_c * qi0 / MASS[i]
 
 
 @njit(cache=True, error_model="numpy")
-def balance_step(a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o):
-    """One step of the projected balance law (law 0): the unprojected (A, Bc, Bs) after it."""
-    x00, x01, x02, x10, x11, x12, x20, x21, x22, y0, y1, y2 = balance_system(
-        a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o)
-    return _solve3(x00, x01, x02, x10, x11, x12, x20, x21, x22, y0, y1, y2)
+def _solve3(x, b, out):
+    """out = x⁻¹ b for a 3x3 x (Cramer; used where det x >= 1)."""
+    c00 = x[1, 1] * x[2, 2] - x[1, 2] * x[2, 1]
+    c01 = x[1, 2] * x[2, 0] - x[1, 0] * x[2, 2]
+    c02 = x[1, 0] * x[2, 1] - x[1, 1] * x[2, 0]
+    det = x[0, 0] * c00 + x[0, 1] * c01 + x[0, 2] * c02
+    b0, b1, b2 = b[0], b[1], b[2]
+    out[0] = (b0 * c00 + x[0, 1] * (b2 * x[1, 2] - b1 * x[2, 2])
+              + x[0, 2] * (b1 * x[2, 1] - b2 * x[1, 1])) / det
+    out[1] = (x[0, 0] * (b1 * x[2, 2] - b2 * x[1, 2]) + b0 * c01
+              + x[0, 2] * (b2 * x[1, 0] - b1 * x[2, 0])) / det
+    out[2] = (x[0, 0] * (x[1, 1] * b2 - x[2, 1] * b1) + x[0, 1] * (b1 * x[2, 0] - b2 * x[1, 0])
+              + b0 * c02) / det
 
 
 @njit(cache=True, error_model="numpy")
-def relaxation_step(a, bc, bs, dexx, deyy, dgxy, a_crit, b_ratio, rate):
-    """One step of the relaxation law (law 1, module doc) for the increment Δεp."""
+def relaxation_step(a, bc, bs, dexx, deyy, dgxy, a_crit, b_ratio, rate, q, dq):
+    """One step of the relaxation law (law 1, module doc): ``q`` (3,) ← the fabric after it,
+    ``dq`` (4, 3) ← its derivatives in (Δεxx, Δεyy, Δγxy, c) (zero at Δεp = 0)."""
     dx = 0.5 * (dexx - deyy)
     dy = 0.5 * dgxy
     r = np.hypot(dx, dy)
+    dq[:, :] = 0.0
     if r == 0.0:
-        return a, bc, bs
+        q[0] = a
+        q[1] = bc
+        q[2] = bs
+        return
+    e = np.exp(-rate * 2.0 * r)
     w = -np.expm1(-rate * 2.0 * r)
     # Compression axis θc: the minor principal direction of Δεp, so 2θc = angle(dx, dy) + π.
     b_crit = b_ratio * a_crit
-    return (a + w * (a_crit - a), bc + w * (-b_crit * dx / r - bc),
-            bs + w * (-b_crit * dy / r - bs))
+    cx = dx / r
+    cy = dy / r
+    tgt = (a_crit, -b_crit * cx, -b_crit * cy)
+    cur = (a, bc, bs)
+    # ∂w = 2k e (cx, cy); ∂(cx, cy)/∂(dx, dy) = [[cy², -cx cy], [-cx cy, cx²]] / r.
+    d_tgt_dx = (0.0, -b_crit * cy * cy / r, b_crit * cx * cy / r)
+    d_tgt_dy = (0.0, b_crit * cx * cy / r, -b_crit * cx * cx / r)
+    for i in range(3):
+        q[i] = cur[i] + w * (tgt[i] - cur[i])
+        ddx = 2.0 * rate * e * cx * (tgt[i] - cur[i]) + w * d_tgt_dx[i]
+        ddy = 2.0 * rate * e * cy * (tgt[i] - cur[i]) + w * d_tgt_dy[i]
+        dq[0, i] = 0.5 * ddx
+        dq[1, i] = -0.5 * ddx
+        dq[2, i] = 0.5 * ddy
 
 
 @njit(cache=True, error_model="numpy")
-def fabric_step(a, bc, bs, dexx, deyy, dgxy, c, law, kappa_a, k_c, k_o, a_crit, b_ratio, rate):
-    """The fabric after the plastic increment (spin already applied): (A, Bc, Bs, projected).
+def fabric_step(a, bc, bs, dexx, deyy, dgxy, c, law, kappa_a, k_c, k_o, a_crit, b_ratio, rate,
+                q, dq, ws):
+    """The fabric after the plastic increment (spin already applied).
 
-    ``projected`` is True when the result had to be projected onto K (module doc).
+    ``q`` (3,) ← (A, Bc, Bs); ``dq`` (4, 3) ← ∂q/∂(Δεxx, Δεyy, Δγxy, c) of the law (the
+    projection, when it acts, is not differentiated); ``ws`` (N_WORK,) scratch. Returns
+    True when the result had to be projected onto K (module doc).
     """
     if law == LAW_RELAXATION:
-        a1, bc1, bs1 = relaxation_step(a, bc, bs, dexx, deyy, dgxy, a_crit, b_ratio, rate)
+        relaxation_step(a, bc, bs, dexx, deyy, dgxy, a_crit, b_ratio, rate, q, dq)
     else:
-        a1, bc1, bs1 = balance_step(a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o)
-    if admissibility_margin(a1, np.hypot(bc1, bs1)) >= 0.0:
-        return a1, bc1, bs1, False
-    pa, pbc, pbs, moved = project_admissible(a1, bc1, bs1)
-    return pa, pbc, pbs, moved
+        gram = ws[0:9].reshape((3, 3))
+        dgram = ws[9:36].reshape((3, 3, 3))
+        x = ws[36:45].reshape((3, 3))
+        y = ws[45:48]
+        tmp = ws[48:51]
+        dxs = ws[51:87].reshape((4, 3, 3))
+        dys = ws[87:99].reshape((4, 3))
+        balance_system(a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o, x, y, dxs, dys,
+                       gram, dgram)
+        _solve3(x, y, q)
+        # ∂q = X⁻¹ (∂y - ∂X q)
+        for v in range(4):
+            for i in range(3):
+                tmp[i] = dys[v, i] - (dxs[v, i, 0] * q[0] + dxs[v, i, 1] * q[1]
+                                      + dxs[v, i, 2] * q[2])
+            _solve3(x, tmp, dq[v])
+    if admissibility_margin(q[0], np.hypot(q[1], q[2])) >= 0.0:
+        return False
+    q[0], q[1], q[2], moved = project_admissible(q[0], q[1], q[2])
+    return moved
 
 
 @njit(cache=True, error_model="numpy")
@@ -236,15 +345,14 @@ def drive_fabric(q0, dstrain_p, dspin, c, law, kappa_a, k_c, k_o, a_crit, b_rati
     n = dstrain_p.shape[0]
     out = np.empty((n + 1, 3))
     out[0, :] = q0
-    a, bc, bs = q0[0], q0[1], q0[2]
+    q = q0.copy()
+    dq = np.empty((4, 3))
+    work = np.empty(N_WORK)
     projected = 0
     for i in range(n):
-        bc, bs = rotate_fabric(bc, bs, dspin[i])
-        a, bc, bs, moved = fabric_step(a, bc, bs, dstrain_p[i, 0], dstrain_p[i, 1],
-                                       dstrain_p[i, 2], c[i], law, kappa_a, k_c, k_o,
-                                       a_crit, b_ratio, rate)
-        projected += moved
-        out[i + 1, 0] = a
-        out[i + 1, 1] = bc
-        out[i + 1, 2] = bs
+        bc, bs = rotate_fabric(q[1], q[2], dspin[i])
+        projected += fabric_step(q[0], bc, bs, dstrain_p[i, 0], dstrain_p[i, 1],
+                                 dstrain_p[i, 2], c[i], law, kappa_a, k_c, k_o, a_crit,
+                                 b_ratio, rate, q, dq, work)
+        out[i + 1, :] = q
     return out, projected

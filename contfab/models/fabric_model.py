@@ -13,32 +13,32 @@ Yield f and flow N: :mod:`contfab.models.slip_planes`; fabric laws:
 3. f(σ_tr; q_n, c_n) <= 1e-10·|σ_tr|: elastic (status 0), tangent C. (The tolerance keeps a
    state left on the surface by the previous step — to the local solve's 1e-12 — elastic
    under a pure rotation, which is then exact.)
-4. Otherwise backward Euler on the face: unknowns x = (σ, Δγ, c), residuals
+4. Otherwise backward Euler on the face, fully implicit: unknowns x = (σ, Δγ, c, A, Bc, Bs),
 
-       σ - σ_tr + Δγ C N(σ, c) = 0,   f(σ, c) = 0,   c - c_n exp(-Δγ tr N(σ, c)) = 0,
+       σ - σ_tr + Δγ C N(σ, c, q) = 0,         f(σ, c, q) = 0,
+       c - c_n exp(-Δγ tr N) = 0,               q - Φ(q_n, Δγ N, c) = 0,
 
-   with the fabric (A, Bc, Bs) frozen at its rotated start-of-step value inside the solve
-   and c implicit exactly as tier 1 (this is what makes the reduction to tier 1 exact).
-   Local Newton with the analytic Jacobian, from tier 1's closed-form coaxial return
-   with the isotropic part of φ, ψ; backtracking on the residual norm. The face solution
-   is accepted when it converged with Δγ >= 0 and P > 0 (status 1).
+   q = (A, Bc, Bs) the fabric at the END of the step and Φ the fabric law's step
+   (:func:`contfab.models.fabric_law.fabric_step`, from the rotated q_n); c is implicit
+   exactly as in tier 1 (which makes the reduction to tier 1 exact). Local Newton with the
+   analytic Jacobian (8x8; the slip planes condensed into it), from one cutting-plane step
+   (near the surface) or tier 1's closed-form coaxial return; backtracking on max |residual|.
+   The face solution is accepted when it converged with Δγ >= 0 and P > 0 (status 1).
 5. Apex (status 2): σ = 0, all of C⁻¹σ_tr plastic, c = c_n exp(P_tr/K), zero tangent
-   (as tier 1), when no face solution exists and C⁻¹σ_tr dilates at least as much as the
-   most dilatant plane allows (G P_tr + K sin ψ_max R_tr <= 0, tier 1's apex criterion
-   with ψ_max the largest plane dilatancy). A face solve that fails outside that region
-   is a failure (status -1).
-6. gp += Δεp1 - Δεp2; the fabric law with Δεp and c_{n+1} (after step 1's rotation). A
-   result outside the admissible set is projected onto it and reported: status 3.
+   (as tier 1), when C⁻¹σ_tr dilates at least as much as the flow: tier 1's criterion
+   G P_tr + K sin ψ R_tr <= 0 with the isotropic part of ψ(θ) at c_apex (exactly tier 1's at
+   isotropy), or — when the face solve finds no point — with the least dilatant plane.
+   A face solve that fails outside that region is a failure (status -1).
+6. gp += Δεp1 - Δεp2. The fabric is Φ's output (admissible; within the solve's tolerance of
+   the q in x); if Φ had to project it onto the admissible set, status 3.
 
-The fabric is explicit in the yield function over a step (it enters f and N at its start
-value) and the stress, c and fabric are first order in the step size overall
-(tests/test_fabric_model.py measures the order). At the end of a step f(σ_{n+1}; q_{n+1})
-differs from 0 by O(Δε) — the next step returns to the current surface, so the error does
-not accumulate.
+Backward Euler is first order in the step size (tests/test_fabric_model.py measures the
+order); every returned state lies on its own yield surface, f(σ_{n+1}; q_{n+1}, c_{n+1}) = 0.
 
-**Consistent tangent** ∂σ_{n+1}/∂Δε: with the converged Jacobian J of the face residuals
-r(x; Δε), dx/dΔε = J⁻¹ [C; 0; 0] (the only Δε-dependence is σ_tr); exact for this scheme
-(the fabric does not move σ_{n+1} within the step). Tested against central differences.
+**Consistent tangent** ∂σ_{n+1}/∂Δε: with the converged Jacobian J of the residuals r(x; Δε),
+dx/dΔε = J⁻¹ [C; 0] (the only Δε-dependence is σ_tr), fabric coupling included; tested
+against central differences of the whole update. (Not differentiated: a projection of the
+fabric, when it acts, and an arc maximum sitting on its arc's end, τ = 0.)
 
 **Failures** (status -1): non-finite input, c outside (0, 1), a face solve that does not
 converge outside the apex region, a non-finite result. The point returns its input stress
@@ -58,16 +58,18 @@ parts, shared with tier 1's layout)::
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, prange
 
 from contfab.fabric import A_EDGE
-from contfab.models.fabric_law import LAW_BALANCE, LAW_RELAXATION, fabric_step, rotate_fabric
-from contfab.models.slip_planes import (N_PL, N_YF, PL_DT, PL_TC, PL_TS, YF_F, YF_FC, YF_FS,
-                                        YF_N, YF_NC, YF_NS, YF_TR, YF_TRC, YF_TRS, fabric_terms,
-                                        yield_and_flow, yield_value)
+from contfab.models.fabric_law import (LAW_BALANCE, LAW_RELAXATION, N_WORK, fabric_step,
+                                       rotate_fabric)
+from contfab.models.slip_planes import (N_P, N_PL, N_YF, PL_DT, PL_TP, PL_TS, YF_F, YF_FP, YF_FS,
+                                        YF_N, YF_NP, YF_NS, YF_TR, YF_TRP, YF_TRS, fabric_terms,
+                                        fabric_terms_jacobian, yield_and_flow, yield_value)
 from contfab.tensors import rotate
 from dem.conventions import admissibility_margin
 
@@ -79,6 +81,8 @@ STATUS_PROJECTED = 3
 STATUS_FAILED = -1
 
 N_PRM = 25
+N_X = 8
+"""Unknowns of the local solve: σ (3), Δγ, c, A, Bc, Bs."""
 SERIAL_BELOW = 512
 """Fewer points than this run on the calling thread (:func:`update_points_serial`)."""
 YIELD_TOL = 1e-10
@@ -139,38 +143,63 @@ def _lu_solve(lu, piv, b):
         b[i] /= lu[i, i]
 
 
-# --------------------------------------------------------------------------- the face return
+# --------------------------------------------------------------------------- the local solve
+
+Scratch = namedtuple("Scratch", "ttr x theta pl yf res jac piv dx xt tt dth dpz fq dq ws")
+"""Per-range work arrays of the local solve (allocated once per range, never per point)."""
+
+
+@njit(cache=True)
+def _scratch():
+    return Scratch(np.empty(3), np.empty(N_X), np.empty(2), np.empty((2, N_PL)), np.empty(N_YF),
+                   np.empty(N_X), np.empty((N_X, N_X)), np.empty(N_X, dtype=np.int64),
+                   np.empty(N_X), np.empty(N_X), np.empty(2), np.empty(2), np.empty((N_P, 4)),
+                   np.empty(3), np.empty((4, 3)), np.empty(N_WORK))
+
 
 @njit(cache=True, error_model="numpy")
-def _residual(x, ttr, c_n, a, bc, bs, prm, theta, search, pl, yf, res, jac, s_ref):
-    """Face residuals at x = (σxx, σyy, σxy, Δγ, c), planes ``theta``, into ``res``.
+def _residual(x, c_n, qn, prm, search, sc, s_ref):
+    """Residuals of the backward-Euler step at x = (σxx, σyy, σxy, Δγ, c, A, Bc, Bs) into
+    ``sc.res`` and their Jacobian into ``sc.jac`` (planes condensed: slip_planes.plane_terms):
 
-    The Jacobian (planes condensed, :func:`contfab.models.slip_planes.plane_terms`) goes to
-    ``jac``. With ``search`` the planes are first moved to their exact arc maxima.
-    Returns max |res| (inf if x is outside the domain: c <= 0).
+        (σ - σ_tr + Δγ C N)/|σ_tr|,  f/|σ_tr|,  c - c_n exp(-Δγ tr N),  q - Φ(q_n, Δγ N, c)
+
+    with f, N at (σ, c, q) and Φ the fabric law (from the rotated start fabric ``qn``).
+    ``sc.theta``: the planes; with ``search`` they are first moved to their exact maxima.
+    Returns (max |res| (inf outside the domain c > 0), whether Φ had to be projected).
     """
     bulk = prm[0]
     shear = prm[1]
     dgam = x[3]
     c = x[4]
     if not c > 0.0:
-        return np.inf
-    fab = fabric_terms(c, a, bc, bs, prm)
-    yield_and_flow(x[0], x[1], x[2], fab, prm[16], search, 0, theta, pl, yf)
+        return np.inf, False
+    yf = sc.yf
+    fab = fabric_terms(c, x[5], x[6], x[7], prm)
+    yield_and_flow(x[0], x[1], x[2], fab, prm[16], search, 0, sc.theta, sc.pl, yf)
     n0 = yf[YF_N]
     n1 = yf[YF_N + 1]
     n2 = yf[YF_N + 2]
+    projected = fabric_step(qn[0], qn[1], qn[2], dgam * n0, dgam * n1, dgam * n2, c,
+                            int(prm[18]), prm[19], prm[20], prm[21], prm[22], prm[23], prm[24],
+                            sc.fq, sc.dq, sc.ws)
     cn0 = (bulk + shear) * n0 + (bulk - shear) * n1
     cn1 = (bulk - shear) * n0 + (bulk + shear) * n1
     cn2 = shear * n2
     e = c_n * np.exp(-dgam * yf[YF_TR])
     inv = 1.0 / s_ref
+    res = sc.res
+    jac = sc.jac
+    dq = sc.dq
+    ttr = sc.ttr
     res[0] = (x[0] - ttr[0] + dgam * cn0) * inv
     res[1] = (x[1] - ttr[1] + dgam * cn1) * inv
     res[2] = (x[2] - ttr[2] + dgam * cn2) * inv
     res[3] = yf[YF_F] * inv
     res[4] = c - e
-    # Jacobian: rows of C N_σ and C N_c.
+    for i in range(3):
+        res[5 + i] = x[5 + i] - sc.fq[i]
+    # Columns σ (0-2): C ∂N/∂σ, ∂f/∂σ, ∂trN/∂σ, and Φ through Δεp = Δγ N.
     for j in range(3):
         ns0 = yf[YF_NS + j]
         ns1 = yf[YF_NS + 3 + j]
@@ -180,23 +209,45 @@ def _residual(x, ttr, c_n, a, bc, bs, prm, theta, search, pl, yf, res, jac, s_re
         jac[2, j] = ((1.0 if j == 2 else 0.0) + dgam * shear * ns2) * inv
         jac[3, j] = yf[YF_FS + j] * inv
         jac[4, j] = e * dgam * yf[YF_TRS + j]
-    nc0 = yf[YF_NC]
-    nc1 = yf[YF_NC + 1]
-    nc2 = yf[YF_NC + 2]
+        for i in range(3):
+            jac[5 + i, j] = -dgam * (dq[0, i] * ns0 + dq[1, i] * ns1 + dq[2, i] * ns2)
+    # Column Δγ (3).
     jac[0, 3] = cn0 * inv
     jac[1, 3] = cn1 * inv
     jac[2, 3] = cn2 * inv
     jac[3, 3] = 0.0
     jac[4, 3] = e * yf[YF_TR]
-    jac[0, 4] = dgam * ((bulk + shear) * nc0 + (bulk - shear) * nc1) * inv
-    jac[1, 4] = dgam * ((bulk - shear) * nc0 + (bulk + shear) * nc1) * inv
-    jac[2, 4] = dgam * shear * nc2 * inv
-    jac[3, 4] = yf[YF_FC] * inv
-    jac[4, 4] = 1.0 + e * dgam * yf[YF_TRC]
+    for i in range(3):
+        jac[5 + i, 3] = -(dq[0, i] * n0 + dq[1, i] * n1 + dq[2, i] * n2)
+    # Columns z = (c, A, Bc, Bs) (4-7): through the angle coefficients p, ∂p/∂z = sc.dpz.
+    for z in range(4):
+        nz0 = 0.0
+        nz1 = 0.0
+        nz2 = 0.0
+        trz = 0.0
+        fz = 0.0
+        for j in range(N_P):
+            d = sc.dpz[j, z]
+            if d != 0.0:
+                nz0 += yf[YF_NP + j] * d
+                nz1 += yf[YF_NP + N_P + j] * d
+                nz2 += yf[YF_NP + 2 * N_P + j] * d
+                trz += yf[YF_TRP + j] * d
+                if j < 3:
+                    fz += yf[YF_FP + j] * d
+        jac[0, 4 + z] = dgam * ((bulk + shear) * nz0 + (bulk - shear) * nz1) * inv
+        jac[1, 4 + z] = dgam * ((bulk - shear) * nz0 + (bulk + shear) * nz1) * inv
+        jac[2, 4 + z] = dgam * shear * nz2 * inv
+        jac[3, 4 + z] = fz * inv
+        jac[4, 4 + z] = (1.0 if z == 0 else 0.0) + e * dgam * trz
+        for i in range(3):
+            jac[5 + i, 4 + z] = ((1.0 if z == i + 1 else 0.0)
+                                 - dgam * (dq[0, i] * nz0 + dq[1, i] * nz1 + dq[2, i] * nz2)
+                                 - (dq[3, i] if z == 0 else 0.0))
     worst = 0.0
-    for i in range(5):
+    for i in range(N_X):
         worst = max(worst, abs(res[i]))
-    return worst
+    return worst, projected
 
 
 @njit(cache=True, error_model="numpy")
@@ -209,14 +260,14 @@ def _dilatancy_range(c, a, bc, bs, prm):
 
 
 @njit(cache=True, error_model="numpy")
-def _initial_guess(ttr, c_n, a, bc, bs, prm, x, theta):
-    """Tier 1's closed-form coaxial return with the isotropic part of φ(θ), ψ(θ) at c_n.
-
-    Also sets the planes to tier 1's, θ = α ± (π/4 - φ/2) (α: major principal direction).
-    """
+def _initial_guess(c_n, qn, prm, sc):
+    """Tier 1's closed-form coaxial return with the isotropic part of φ(θ), ψ(θ) at c_n, the
+    fabric at its start value, and the planes at tier 1's θ = α ± (π/4 - φ/2)."""
     bulk = prm[0]
     shear = prm[1]
-    phi0, _, _, psi0, _, _, _, _, phi_lo, phi_hi = fabric_terms(c_n, a, bc, bs, prm)
+    ttr = sc.ttr
+    x = sc.x
+    phi0, _, _, psi0, _, _, _, _, phi_lo, phi_hi = fabric_terms(c_n, qn[0], qn[1], qn[2], prm)
     phi = min(max(phi0, phi_lo), phi_hi)
     psi = min(max(psi0, -phi), phi)
     m = 0.5 * (ttr[0] + ttr[1])
@@ -237,22 +288,25 @@ def _initial_guess(ttr, c_n, a, bc, bs, prm, x, theta):
     psi_hat = np.arctan2(spsi * np.cos(phi), 1.0 - spsi * sphi)
     x[3] = dgam / np.cos(phi - psi_hat)
     x[4] = c_n * np.exp(-dgam * spsi)
+    x[5] = qn[0]
+    x[6] = qn[1]
+    x[7] = qn[2]
     alpha = 0.5 * np.arctan2(sa, ca)
-    theta[0] = alpha + 0.25 * np.pi - 0.5 * phi
-    theta[1] = alpha - 0.25 * np.pi + 0.5 * phi
+    sc.theta[0] = alpha + 0.25 * np.pi - 0.5 * phi
+    sc.theta[1] = alpha - 0.25 * np.pi + 0.5 * phi
 
 
 @njit(cache=True, error_model="numpy")
-def _cutting_plane_guess(ttr, c_n, fab, prm, x, theta, pl, yf):
-    """Replace the coaxial guess by one cutting-plane step from σ_tr when it is closer.
-
-    With f, ∂f/∂σ and N at σ_tr (planes at their maxima, from the elastic check):
-    Δγ = f_tr / (∂f/∂σ · C N), σ = σ_tr - Δγ C N, c = c_n exp(-Δγ tr N) — first order in
-    the step, so small increments start the Newton iteration O(Δε²) from the solution.
-    """
+def _cutting_plane_guess(c_n, qn, fab, prm, sc):
+    """One cutting-plane step from σ_tr (planes at their maxima from the elastic check):
+    Δγ = f_tr / (∂f/∂σ · C N), σ = σ_tr - Δγ C N, c = c_n exp(-Δγ tr N), fabric at its start
+    value — first order in the step, so small increments start O(Δε²) from the solution."""
     bulk = prm[0]
     shear = prm[1]
-    yield_and_flow(ttr[0], ttr[1], ttr[2], fab, prm[16], False, 0, theta, pl, yf)
+    ttr = sc.ttr
+    x = sc.x
+    yf = sc.yf
+    yield_and_flow(ttr[0], ttr[1], ttr[2], fab, prm[16], False, 0, sc.theta, sc.pl, yf)
     n0 = yf[YF_N]
     n1 = yf[YF_N + 1]
     n2 = yf[YF_N + 2]
@@ -268,43 +322,56 @@ def _cutting_plane_guess(ttr, c_n, fab, prm, x, theta, pl, yf):
     x[2] = ttr[2] - dgam * cn2
     x[3] = dgam
     x[4] = c_n * np.exp(-dgam * yf[YF_TR])
+    x[5] = qn[0]
+    x[6] = qn[1]
+    x[7] = qn[2]
 
 
 @njit(cache=True, error_model="numpy")
-def _face_return(ttr, c_n, a, bc, bs, prm, x, theta, pl, yf, res, jac, piv, dx, xt, tt, dth,
-                 s_ref):
-    """Newton on the face residuals from ``x``; True when converged to a valid face point.
+def _face_return(c_n, qn, prm, sc, s_ref):
+    """Newton on the step's residuals from ``sc.x``: (converged to a valid face point,
+    fabric projected).
 
-    The planes move with the condensed step δθ_k + θ_σ·dσ + θ_c dc (fast: no inner plane
-    search); the line search backtracks on max |residual|. If it cannot progress (near the
-    apex the planes are ill-conditioned), the solve continues with the planes re-searched
-    to their exact maxima at every evaluation. On success ``jac`` holds the LU factors of
-    the Jacobian at the solution and ``yf`` the yield/flow terms there.
+    The planes move with the condensed step δθ_k + θ_σ·dσ + θ_p·dp; the line search
+    backtracks on max |residual|. If it cannot progress (near the apex the planes are
+    ill-conditioned), the solve continues with the planes re-searched to their exact
+    maxima at every evaluation. On success ``sc.jac`` holds the LU factors of the Jacobian
+    at the solution, ``sc.yf`` the yield/flow terms and ``sc.fq`` the fabric there.
     """
+    x = sc.x
+    xt = sc.xt
+    dx = sc.dx
+    pl = sc.pl
     search = False
-    err = _residual(x, ttr, c_n, a, bc, bs, prm, theta, search, pl, yf, res, jac, s_ref)
+    err, projected = _residual(x, c_n, qn, prm, search, sc, s_ref)
     for _ in range(NEWTON_MAXIT):
         if not np.isfinite(err):
-            return False
-        if not _lu(jac, piv):
-            return False
+            return False, False
+        if not _lu(sc.jac, sc.piv):
+            return False, False
         if err <= NEWTON_TOL and max(abs(pl[0, PL_DT]), abs(pl[1, PL_DT])) <= PLANE_STEP_TOL:
             p = -0.5 * (x[0] + x[1])
-            return x[3] >= 0.0 and p > 0.0
-        for i in range(5):
-            dx[i] = -res[i]
-        _lu_solve(jac, piv, dx)
+            return x[3] >= 0.0 and p > 0.0, projected
+        for i in range(N_X):
+            dx[i] = -sc.res[i]
+        _lu_solve(sc.jac, sc.piv, dx)
         for k in range(2):
-            dth[k] = (pl[k, PL_DT] + pl[k, PL_TS] * dx[0] + pl[k, PL_TS + 1] * dx[1]
-                      + pl[k, PL_TS + 2] * dx[2] + pl[k, PL_TC] * dx[4])
+            d = pl[k, PL_DT] + pl[k, PL_TS] * dx[0] + pl[k, PL_TS + 1] * dx[1] \
+                + pl[k, PL_TS + 2] * dx[2]
+            for j in range(3):
+                for z in range(4):
+                    d += pl[k, PL_TP + j] * sc.dpz[j, z] * dx[4 + z]
+            sc.dth[k] = d
+        theta0 = sc.theta[0]
+        theta1 = sc.theta[1]
         step = 1.0
         accepted = False
         for _ in range(30):
-            for i in range(5):
+            for i in range(N_X):
                 xt[i] = x[i] + step * dx[i]
-            tt[0] = theta[0] + step * dth[0]
-            tt[1] = theta[1] + step * dth[1]
-            err_t = _residual(xt, ttr, c_n, a, bc, bs, prm, tt, search, pl, yf, res, jac, s_ref)
+            sc.theta[0] = theta0 + step * sc.dth[0]
+            sc.theta[1] = theta1 + step * sc.dth[1]
+            err_t, projected = _residual(xt, c_n, qn, prm, search, sc, s_ref)
             if err_t < err or err_t <= NEWTON_TOL:
                 accepted = True
                 break
@@ -312,17 +379,17 @@ def _face_return(ttr, c_n, a, bc, bs, prm, x, theta, pl, yf, res, jac, piv, dx, 
             if step < 0.1 and not search:
                 break
         if accepted:
-            for i in range(5):
+            for i in range(N_X):
                 x[i] = xt[i]
-            theta[0] = tt[0]
-            theta[1] = tt[1]
             err = err_t
         elif not search:
             search = True
-            err = _residual(x, ttr, c_n, a, bc, bs, prm, theta, search, pl, yf, res, jac, s_ref)
+            sc.theta[0] = theta0
+            sc.theta[1] = theta1
+            err, projected = _residual(x, c_n, qn, prm, search, sc, s_ref)
         else:
-            return False
-    return False
+            return False, False
+    return False, False
 
 
 # --------------------------------------------------------------------------- one point
@@ -349,29 +416,29 @@ def _inputs_finite(stress_n, state_n, dstrain, dspin, i):
 
 
 @njit(cache=True, error_model="numpy")
-def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status,
-           ttr, x, theta, pl, yf, res, jac, piv, dx, xt, tt, dth):
+def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status, sc):
     bulk = prm[0]
     shear = prm[1]
     c_n = state_n[i, 1]
     if not (0.0 < c_n < 1.0):
         status[i] = STATUS_FAILED
         return
-    a = state_n[i, 2]
+    ttr = sc.ttr
     rxx, ryy, rxy = rotate(stress_n[i, 0], stress_n[i, 1], stress_n[i, 2], dspin[i])
     bc, bs = rotate_fabric(state_n[i, 3], state_n[i, 4], dspin[i])
+    q0 = state_n[i, 2]
     dexx = dstrain[i, 0]
     deyy = dstrain[i, 1]
     dgxy = dstrain[i, 2]
     ttr[0] = rxx + (bulk + shear) * dexx + (bulk - shear) * deyy
     ttr[1] = ryy + (bulk - shear) * dexx + (bulk + shear) * deyy
     ttr[2] = rxy + shear * dgxy
-    _initial_guess(ttr, c_n, a, bc, bs, prm, x, theta)
-    fab = fabric_terms(c_n, a, bc, bs, prm)
-    f_tr = yield_value(ttr[0], ttr[1], ttr[2], fab, prm[16], int(prm[17]), theta)
+    _initial_guess(c_n, (q0, bc, bs), prm, sc)
+    fab = fabric_terms(c_n, q0, bc, bs, prm)
+    f_tr = yield_value(ttr[0], ttr[1], ttr[2], fab, prm[16], int(prm[17]), sc.theta)
     state[i, 0] = state_n[i, 0]
     state[i, 1] = c_n
-    state[i, 2] = a
+    state[i, 2] = q0
     state[i, 3] = bc
     state[i, 4] = bs
     s_ref = np.hypot(0.5 * (ttr[0] + ttr[1]), np.hypot(0.5 * (ttr[0] - ttr[1]), ttr[2]))
@@ -382,12 +449,14 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
         isotropic_stiffness_into(bulk, shear, tangent[i])
         status[i] = STATUS_ELASTIC
         return
+    qs = (q0, bc, bs)
     p_tr = -0.5 * (ttr[0] + ttr[1])
     r_tr = np.hypot(0.5 * (ttr[0] - ttr[1]), ttr[2])
     # The apex first, as tier 1: at c_apex, C⁻¹σ_tr at least as dilatant as the flow.
     c_apex = c_n * np.exp(p_tr / bulk)
-    spsi_iso, spsi_min = _dilatancy_range(c_apex, a, bc, bs, prm)
+    spsi_iso, spsi_min = _dilatancy_range(c_apex, q0, bc, bs, prm)
     face = False
+    projected = False
     apex = shear * p_tr + bulk * spsi_iso * r_tr <= 0.0
     if not apex:
         # Near the surface (the common case in a converging global iteration) one cutting-
@@ -395,34 +464,34 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
         # tier 1's coaxial return.
         near = f_tr <= CUTTING_PLANE_RANGE * s_ref
         if near:
-            _cutting_plane_guess(ttr, c_n, fab, prm, x, theta, pl, yf)
-        face = _face_return(ttr, c_n, a, bc, bs, prm, x, theta, pl, yf, res, jac, piv, dx, xt,
-                            tt, dth, s_ref)
+            _cutting_plane_guess(c_n, qs, fab, prm, sc)
+        face, projected = _face_return(c_n, qs, prm, sc, s_ref)
         if near and not face:
-            _initial_guess(ttr, c_n, a, bc, bs, prm, x, theta)
-            face = _face_return(ttr, c_n, a, bc, bs, prm, x, theta, pl, yf, res, jac, piv, dx,
-                                xt, tt, dth, s_ref)
+            _initial_guess(c_n, qs, prm, sc)
+            face, projected = _face_return(c_n, qs, prm, sc, s_ref)
         # No face point found: the material separates if some plane's flow is less
         # dilatant than C⁻¹σ_tr; otherwise the local solve failed.
         apex = not face and shear * p_tr + bulk * spsi_min * r_tr <= 0.0
+    x = sc.x
     if face:
         for j in range(3):
             stress[i, j] = x[j]
         c1 = x[4]
         dgam = x[3]
-        pxx = dgam * yf[YF_N]
-        pyy = dgam * yf[YF_N + 1]
-        pgg = dgam * yf[YF_N + 2]
-        # Tangent: solve J X = [C/s_ref; 0; 0], column by column.
+        pxx = dgam * sc.yf[YF_N]
+        pyy = dgam * sc.yf[YF_N + 1]
+        pgg = dgam * sc.yf[YF_N + 2]
+        # Tangent: solve J X = [C/s_ref; 0], column by column.
+        dx = sc.dx
         for j in range(3):
-            for k in range(5):
+            for k in range(N_X):
                 dx[k] = 0.0
             if j < 2:
                 dx[0] = (bulk + shear if j == 0 else bulk - shear) / s_ref
                 dx[1] = (bulk - shear if j == 0 else bulk + shear) / s_ref
             else:
                 dx[2] = shear / s_ref
-            _lu_solve(jac, piv, dx)
+            _lu_solve(sc.jac, sc.piv, dx)
             for k in range(3):
                 tangent[i, k, j] = dx[k]
         status[i] = STATUS_FACE
@@ -434,17 +503,18 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
         pyy = 0.5 * m_tr / bulk - 0.25 * (ttr[0] - ttr[1]) / shear
         pgg = ttr[2] / shear
         c1 = c_apex
+        projected = fabric_step(q0, bc, bs, pxx, pyy, pgg, c1, int(prm[18]), prm[19], prm[20],
+                                prm[21], prm[22], prm[23], prm[24], sc.fq, sc.dq, sc.ws)
         status[i] = STATUS_APEX
     else:
         status[i] = STATUS_FAILED
         return
     state[i, 0] = state_n[i, 0] + np.hypot(pxx - pyy, pgg)
     state[i, 1] = c1
-    a1, bc1, bs1, projected = fabric_step(a, bc, bs, pxx, pyy, pgg, c1, int(prm[18]), prm[19],
-                                          prm[20], prm[21], prm[22], prm[23], prm[24])
-    state[i, 2] = a1
-    state[i, 3] = bc1
-    state[i, 4] = bs1
+    # Φ's (admissible) output; on the face it equals x[5:8] to the solve's tolerance.
+    state[i, 2] = sc.fq[0]
+    state[i, 3] = sc.fq[1]
+    state[i, 4] = sc.fq[2]
     if projected:
         status[i] = STATUS_PROJECTED
 
@@ -456,7 +526,7 @@ def _finish(stress_n, state_n, stress, state, tangent, status, i, bulk, shear):
     for j in range(3):
         ok = ok and np.isfinite(stress[i, j])
         for k in range(3):
-            ok = ok and np.isfinite(tangent[i, j, k])
+            ok = ok and np.isfinite(tangent[i, k, j])
     for j in range(state.shape[1]):
         ok = ok and np.isfinite(state[i, j])
     if not ok:
@@ -469,22 +539,11 @@ def _finish(stress_n, state_n, stress, state, tangent, status, i, bulk, shear):
 @njit(cache=True, error_model="numpy")
 def _update_range(lo, hi, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status):
     """Update points lo..hi-1 (scratch allocated once per range, never per point)."""
-    ttr = np.empty(3)
-    x = np.empty(5)
-    theta = np.empty(2)
-    pl = np.empty((2, N_PL))
-    yf = np.empty(N_YF)
-    res = np.empty(5)
-    jac = np.empty((5, 5))
-    piv = np.empty(5, dtype=np.int64)
-    dx = np.empty(5)
-    xt = np.empty(5)
-    tt = np.empty(2)
-    dth = np.empty(2)
+    sc = _scratch()
+    fabric_terms_jacobian(prm, sc.dpz)
     for i in range(lo, hi):
         if _inputs_finite(stress_n, state_n, dstrain, dspin, i):
-            _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status,
-                   ttr, x, theta, pl, yf, res, jac, piv, dx, xt, tt, dth)
+            _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status, sc)
         else:
             status[i] = STATUS_FAILED
         _finish(stress_n, state_n, stress, state, tangent, status, i, prm[0], prm[1])

@@ -51,13 +51,20 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-# Layout of one plane's terms (row of the ``pl`` scratch array).
-PL_H, PL_HS, PL_HC, PL_TS, PL_TC, PL_N, PL_NT, PL_NC, PL_SH, PL_SHT, PL_SHC, PL_DT = (
-    0, 1, 4, 5, 8, 9, 12, 15, 18, 19, 20, 21)
-N_PL = 22
-# Layout of the aggregated yield/flow terms (the ``yf`` scratch array).
-YF_F, YF_FS, YF_FC, YF_N, YF_NS, YF_NC, YF_TR, YF_TRS, YF_TRC = 0, 1, 4, 5, 8, 17, 20, 21, 24
-N_YF = 25
+# The six angle coefficients p = (φ0, pc, ps, ψ0, qc, qs) of φ(θ) = φ0 + pc cos 2θ + ps sin 2θ
+# and ψ(θ) = ψ0 + qc cos 2θ + qs sin 2θ (:func:`fabric_terms`): c, A, Bc, Bs act only through
+# them, so derivatives are taken in p (row-major (3, 6) blocks for N).
+N_P = 6
+# Layout of one plane's terms (row of the ``pl`` scratch array): h, ∂h/∂σ, ∂h/∂p (the three
+# φ coefficients), ∂θ/∂σ, ∂θ/∂p, N, ∂N/∂θ, ∂N/∂p at fixed θ, sin ψ̂, its θ- and
+# p-derivatives, the plane's own Newton step.
+PL_H, PL_HS, PL_HP, PL_TS, PL_TP, PL_N, PL_NT, PL_NP, PL_SH, PL_SHT, PL_SHP, PL_DT = (
+    0, 1, 4, 7, 10, 13, 16, 19, 37, 38, 39, 45)
+N_PL = 46
+# Layout of the aggregated yield/flow terms (the ``yf`` scratch array): f, ∂f/∂σ, ∂f/∂p (φ
+# coefficients), N, ∂N/∂σ (3x3), ∂N/∂p (3x6), tr N, ∂trN/∂σ, ∂trN/∂p.
+YF_F, YF_FS, YF_FP, YF_N, YF_NS, YF_NP, YF_TR, YF_TRS, YF_TRP = 0, 1, 4, 7, 10, 19, 37, 38, 41
+N_YF = 47
 
 NEWTON_MAXIT_PLANE = 60
 PLANE_TOL = 1e-13
@@ -141,18 +148,31 @@ def arc_maximum(g, u0, n_search, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
 
 
 @njit(cache=True, error_model="numpy")
+def _slip_angle(sq, cq, sp, cp, dpsi, dphi):
+    """(sin ψ̂, cos ψ̂) and their derivatives along (dψ, dφ) (module doc)."""
+    num = sq * cp
+    den = 1.0 - sq * sp
+    rho = np.hypot(num, den)
+    sh = num / rho
+    ch = den / rho
+    d_num = cq * cp * dpsi - sq * sp * dphi
+    d_den = -(cq * sp * dpsi + sq * cp * dphi)
+    d_rho = (num * d_num + den * d_den) / rho
+    return sh, ch, (d_num - sh * d_rho) / rho, (d_den - ch * d_rho) / rho
+
+
+@njit(cache=True, error_model="numpy")
 def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
     """Every term of the arc-g maximum near u, written to row k of ``pl`` (layout PL_*).
 
-    ``fab`` = (φ0, pc, ps, ψ0, qc, qs, φ', ψ', φ_min, φ_max) at the current packing fraction
-    (φ0, ψ0 include the c-term; φ', ψ' are their c-derivatives). u need not be the exact
-    maximizer: with the plane's Newton step δθ = -h_θ/h_θθ (stored as PL_DT, limited to the
-    arc) the values are those of the predicted maximum to second order — h + ½ h_θ δθ,
-    N + N_θ δθ, ∂h/∂σ + h_θσ δθ — so an outer Newton iteration that also moves the plane by
-    δθ + θ_σ dσ + θ_c dc solves the plane's optimality jointly (static condensation). At the
-    exact maximizer δθ = 0 and every term is exact.
+    ``fab`` = (φ0, pc, ps, ψ0, qc, qs, ·, ·, φ_min, φ_max) (:func:`fabric_terms`). u need
+    not be the exact maximizer: with the plane's Newton step δθ = -h_θ/h_θθ (stored as
+    PL_DT, limited to the arc) the values are those of the predicted maximum to second
+    order — h + ½ h_θ δθ, N + N_θ δθ, ∂h/∂σ + h_θσ δθ — so an outer Newton iteration that
+    also moves the plane by δθ + θ_σ dσ + θ_p dp solves the plane's optimality jointly
+    (static condensation). At the exact maximizer δθ = 0 and every term is exact.
     """
-    phi0, pc, ps, psi0, qc, qs, dphi, dpsi, phi_lo, phi_hi = fab
+    phi0, pc, ps, psi0, qc, qs = fab[0], fab[1], fab[2], fab[3], fab[4], fab[5]
     cu = np.cos(u)
     su = np.sin(u)
     c2 = ca * cu - sa * su
@@ -166,24 +186,20 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
     ta_s0 = -0.5 * s2
     ta_s1 = 0.5 * s2
     ta_s2 = c2
-    # Friction: φ_θ = 2 φ_u, φ_θθ = 4 φ_uu.
+    # Friction: φ_θ = 2 φ_u, φ_θθ = 4 φ_uu; basis of its coefficients (1, c2, s2).
     phi, p_t, p_tt, phi_free = _clamped(phi0 + pc * c2 + ps * s2, 2.0 * (-pc * s2 + ps * c2),
-                                        -4.0 * (pc * c2 + ps * s2), phi_lo, phi_hi)
-    p_c = dphi if phi_free else 0.0
+                                        -4.0 * (pc * c2 + ps * s2), fab[8], fab[9])
     t = np.tan(phi)
     sec2 = 1.0 + t * t
     t_t = sec2 * p_t
     t_tt = 2.0 * t * sec2 * p_t * p_t + sec2 * p_tt
-    t_c = sec2 * p_c
-    t_tc = 2.0 * t * sec2 * p_c * p_t
     h = g * tau + t * sn
     h_t = -2.0 * g * (sn - m) + t_t * sn + 2.0 * t * tau
     h_tt = -4.0 * g * tau + t_tt * sn + 4.0 * t_t * tau - 4.0 * t * (sn - m)
-    # h_θσ = -2g(∂σn/∂σ - e) + T_θ ∂σn/∂σ + 2T ∂τ/∂σ; h_θc = T_θc σn + 2 T_c τ.
+    # h_θσ = -2g(∂σn/∂σ - e) + T_θ ∂σn/∂σ + 2T ∂τ/∂σ
     hts0 = -2.0 * g * (sn_s0 - 0.5) + t_t * sn_s0 + 2.0 * t * ta_s0
     hts1 = -2.0 * g * (sn_s1 - 0.5) + t_t * sn_s1 + 2.0 * t * ta_s1
     hts2 = -2.0 * g * sn_s2 + t_t * sn_s2 + 2.0 * t * ta_s2
-    htc = t_tc * sn + 2.0 * t_c * tau
     if h_tt < 0.0:
         inv = -1.0 / h_tt
         # The plane's Newton step, kept inside the arc (u + 2δθ in [0, π] or [-π, 0]).
@@ -197,45 +213,27 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
     pl[k, PL_HS] = g * ta_s0 + t * sn_s0 + hts0 * dt
     pl[k, PL_HS + 1] = g * ta_s1 + t * sn_s1 + hts1 * dt
     pl[k, PL_HS + 2] = g * ta_s2 + t * sn_s2 + hts2 * dt
-    pl[k, PL_HC] = t_c * sn + htc * dt
-    # ∂θ/∂σ = -h_θσ / h_θθ, ∂θ/∂c = -h_θc / h_θθ (0 where the maximum is not interior).
+    # ∂θ/∂σ = -h_θσ / h_θθ (0 where the maximum is not interior).
     pl[k, PL_TS] = inv * hts0
     pl[k, PL_TS + 1] = inv * hts1
     pl[k, PL_TS + 2] = inv * hts2
-    pl[k, PL_TC] = inv * htc
-    # Dilatancy, clamped to [-φ, φ] (then it follows φ's derivatives).
+    # Dilatancy, clamped to [-φ, φ] (then it follows φ).
     psi = psi0 + qc * c2 + qs * s2
     q_t = 2.0 * (-qc * s2 + qs * c2)
-    q_c = dpsi
+    clamp = 0.0
     if psi > phi:
         psi = phi
         q_t = p_t
-        q_c = p_c
+        clamp = 1.0
     elif psi < -phi:
         psi = -phi
         q_t = -p_t
-        q_c = -p_c
-    # Plane slip angle: sin ψ̂ = num/ρ, cos ψ̂ = den/ρ (module doc); cos φ from tan φ.
+        clamp = -1.0
     sq = np.sin(psi)
     cq = np.cos(psi)
     cp = 1.0 / np.sqrt(sec2)
     sp = t * cp
-    num = sq * cp
-    den = 1.0 - sq * sp
-    rho = np.hypot(num, den)
-    sh = num / rho
-    ch = den / rho
-    # θ- and c-derivatives of (sh, ch) through (ψ, φ).
-    num_t = cq * cp * q_t - sq * sp * p_t
-    den_t = -(cq * sp * q_t + sq * cp * p_t)
-    rho_t = (num * num_t + den * den_t) / rho
-    sh_t = (num_t - sh * rho_t) / rho
-    ch_t = (den_t - ch * rho_t) / rho
-    num_c = cq * cp * q_c - sq * sp * p_c
-    den_c = -(cq * sp * q_c + sq * cp * p_c)
-    rho_c = (num * num_c + den * den_c) / rho
-    sh_c = (num_c - sh * rho_c) / rho
-    ch_c = (den_c - ch * rho_c) / rho
+    sh, ch, sh_t, ch_t = _slip_angle(sq, cq, sp, cp, q_t, p_t)
     # N_θ: ∂(∂τ/∂σ)/∂θ = (-c2, c2, -2 s2), ∂(∂σn/∂σ)/∂θ = (-s2, s2, 2 c2).
     nt0 = g * ch_t * ta_s0 - g * ch * c2 + sh_t * sn_s0 - sh * s2
     nt1 = g * ch_t * ta_s1 + g * ch * c2 + sh_t * sn_s1 + sh * s2
@@ -246,12 +244,28 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
     pl[k, PL_NT] = nt0
     pl[k, PL_NT + 1] = nt1
     pl[k, PL_NT + 2] = nt2
-    pl[k, PL_NC] = g * ch_c * ta_s0 + sh_c * sn_s0
-    pl[k, PL_NC + 1] = g * ch_c * ta_s1 + sh_c * sn_s1
-    pl[k, PL_NC + 2] = g * ch_c * ta_s2 + sh_c * sn_s2
     pl[k, PL_SH] = sh + sh_t * dt
     pl[k, PL_SHT] = sh_t
-    pl[k, PL_SHC] = sh_c
+    # Derivatives in p at fixed θ: φ = φ0 + pc c2 + ps s2 (if not clamped), ψ likewise.
+    for j in range(N_P):
+        b = 1.0 if j % 3 == 0 else (c2 if j % 3 == 1 else s2)
+        b_t = 0.0 if j % 3 == 0 else (-2.0 * s2 if j % 3 == 1 else 2.0 * c2)
+        if j < 3:
+            dphi = b if phi_free else 0.0
+            dphi_t = b_t if phi_free else 0.0
+            dpsi = clamp * dphi
+            t_p = sec2 * dphi
+            ht_p = (2.0 * t * sec2 * dphi * p_t + sec2 * dphi_t) * sn + 2.0 * t_p * tau
+            pl[k, PL_HP + j] = t_p * sn + ht_p * dt
+            pl[k, PL_TP + j] = inv * ht_p
+        else:
+            dphi = 0.0
+            dpsi = b if clamp == 0.0 else 0.0
+        _, _, sh_p, ch_p = _slip_angle(sq, cq, sp, cp, dpsi, dphi)
+        pl[k, PL_NP + j] = g * ch_p * ta_s0 + sh_p * sn_s0
+        pl[k, PL_NP + N_P + j] = g * ch_p * ta_s1 + sh_p * sn_s1
+        pl[k, PL_NP + 2 * N_P + j] = g * ch_p * ta_s2 + sh_p * sn_s2
+        pl[k, PL_SHP + j] = sh_p
 
 
 @njit(cache=True, error_model="numpy")
@@ -274,6 +288,21 @@ def fabric_terms(c, a, bc, bs, prm):
     qc = b2 * (bc * np.cos(b3) + bs * np.sin(b3))
     qs = b2 * (bs * np.cos(b3) - bc * np.sin(b3))
     return phi0, pc, ps, psi0, qc, qs, dphi, dpsi, prm[6], prm[7]
+
+
+@njit(cache=True, error_model="numpy")
+def fabric_terms_jacobian(prm, out):
+    """``out`` (6, 4) ← ∂p/∂(c, A, Bc, Bs) of :func:`fabric_terms` (constant: p is linear)."""
+    out[:, :] = 0.0
+    out[0, 0] = prm[3]
+    out[3, 0] = prm[4]
+    out[0, 1] = prm[9]
+    out[3, 1] = prm[13]
+    for row, amp, ang in ((1, prm[10], prm[11]), (4, prm[14], prm[15])):
+        out[row, 2] = amp * np.cos(ang)          # pc = amp (Bc cos a + Bs sin a)
+        out[row, 3] = amp * np.sin(ang)
+        out[row + 1, 2] = -amp * np.sin(ang)     # ps = amp (Bs cos a - Bc sin a)
+        out[row + 1, 3] = amp * np.cos(ang)
 
 
 @njit(cache=True, error_model="numpy")
@@ -335,8 +364,8 @@ def yield_and_flow(sxx, syy, sxy, fab, beta, search, n_search, theta, pl, yf):
     ``theta`` (2,): the planes of the two arcs. With ``search`` each arc's maximum is found
     first (grid of ``n_search`` points, or from ``theta`` if 0) and ``theta`` updated;
     without, the terms are the one-step predictions of :func:`plane_terms` at ``theta``
-    (the caller moves the planes). ``pl`` (2, N_PL) scratch. N_σ is stored row-major,
-    yf[YF_NS + 3 i + j] = ∂N_i/∂σ_j.
+    (the caller moves the planes). ``pl`` (2, N_PL) scratch. Blocks are row-major:
+    yf[YF_NS + 3 i + j] = ∂N_i/∂σ_j, yf[YF_NP + 6 i + j] = ∂N_i/∂p_j.
     """
     m, r, ca, sa = stress_frame(sxx, syy, sxy)
     two_alpha = np.arctan2(sa, ca)
@@ -354,38 +383,42 @@ def yield_and_flow(sxx, syy, sxy, fab, beta, search, n_search, theta, pl, yf):
     # Softmax of z_k = β h_k / s over two arcs: w0 = 1/(1 + exp(z1 - z0)), dw0 = w0 w1 d(z0 - z1).
     if s > 0.0:
         w0 = 1.0 / (1.0 + np.exp(beta * (h1 - h0) / s))
-        s_s0 = sxx / (2.0 * s)
-        s_s1 = syy / (2.0 * s)
-        s_s2 = sxy / s
+        s_s = (sxx / (2.0 * s), syy / (2.0 * s), sxy / s)
         k_w = w0 * (1.0 - w0) * beta / s
     else:
         w0 = 0.5
-        s_s0 = 0.0
-        s_s1 = 0.0
-        s_s2 = 0.0
+        s_s = (0.0, 0.0, 0.0)
         k_w = 0.0
     w1 = 1.0 - w0
     dh = h0 - h1
+    dsh = pl[0, PL_SH] - pl[1, PL_SH]
     yf[YF_F] = w0 * h0 + w1 * h1
-    dw_c = k_w * (pl[0, PL_HC] - pl[1, PL_HC])
+    yf[YF_TR] = w0 * pl[0, PL_SH] + w1 * pl[1, PL_SH]
+    for i in range(3):
+        yf[YF_N + i] = w0 * pl[0, PL_N + i] + w1 * pl[1, PL_N + i]
     for j in range(3):
-        ss = s_s0 if j == 0 else (s_s1 if j == 1 else s_s2)
-        dw = k_w * (pl[0, PL_HS + j] - pl[1, PL_HS + j] - dh * ss / s) if s > 0.0 else 0.0
+        dw = k_w * (pl[0, PL_HS + j] - pl[1, PL_HS + j] - dh * s_s[j] / s) if s > 0.0 else 0.0
         yf[YF_FS + j] = w0 * pl[0, PL_HS + j] + w1 * pl[1, PL_HS + j] + dh * dw
-        yf[YF_TRS + j] = ((pl[0, PL_SH] - pl[1, PL_SH]) * dw
-                          + w0 * pl[0, PL_SHT] * pl[0, PL_TS + j]
+        yf[YF_TRS + j] = (dsh * dw + w0 * pl[0, PL_SHT] * pl[0, PL_TS + j]
                           + w1 * pl[1, PL_SHT] * pl[1, PL_TS + j])
         for i in range(3):
             yf[YF_NS + 3 * i + j] = ((pl[0, PL_N + i] - pl[1, PL_N + i]) * dw
                                      + w0 * pl[0, PL_NT + i] * pl[0, PL_TS + j]
                                      + w1 * pl[1, PL_NT + i] * pl[1, PL_TS + j])
-    yf[YF_FC] = w0 * pl[0, PL_HC] + w1 * pl[1, PL_HC] + dh * dw_c
-    for i in range(3):
-        yf[YF_N + i] = w0 * pl[0, PL_N + i] + w1 * pl[1, PL_N + i]
-        yf[YF_NC + i] = ((pl[0, PL_N + i] - pl[1, PL_N + i]) * dw_c
-                         + w0 * (pl[0, PL_NT + i] * pl[0, PL_TC] + pl[0, PL_NC + i])
-                         + w1 * (pl[1, PL_NT + i] * pl[1, PL_TC] + pl[1, PL_NC + i]))
-    yf[YF_TR] = w0 * pl[0, PL_SH] + w1 * pl[1, PL_SH]
-    yf[YF_TRC] = ((pl[0, PL_SH] - pl[1, PL_SH]) * dw_c
-                  + w0 * (pl[0, PL_SHT] * pl[0, PL_TC] + pl[0, PL_SHC])
-                  + w1 * (pl[1, PL_SHT] * pl[1, PL_TC] + pl[1, PL_SHC]))
+    for j in range(N_P):
+        if j < 3:    # the φ coefficients move h (the weights) and the planes
+            dw = k_w * (pl[0, PL_HP + j] - pl[1, PL_HP + j])
+            yf[YF_FP + j] = w0 * pl[0, PL_HP + j] + w1 * pl[1, PL_HP + j] + dh * dw
+            tp0 = pl[0, PL_TP + j]
+            tp1 = pl[1, PL_TP + j]
+        else:
+            dw = 0.0
+            tp0 = 0.0
+            tp1 = 0.0
+        yf[YF_TRP + j] = (dsh * dw + w0 * (pl[0, PL_SHT] * tp0 + pl[0, PL_SHP + j])
+                          + w1 * (pl[1, PL_SHT] * tp1 + pl[1, PL_SHP + j]))
+        for i in range(3):
+            yf[YF_NP + N_P * i + j] = (
+                (pl[0, PL_N + i] - pl[1, PL_N + i]) * dw
+                + w0 * (pl[0, PL_NT + i] * tp0 + pl[0, PL_NP + N_P * i + j])
+                + w1 * (pl[1, PL_NT + i] * tp1 + pl[1, PL_NP + N_P * i + j]))
