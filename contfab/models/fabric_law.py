@@ -90,15 +90,17 @@ def _moments(m, r):
     Leibniz: the integrand vanishes at ±x0, so ∂I_k/∂m = ∫ cos kx and ∂I_k/∂r = ∫ cos x cos kx
     over the arc. I1/r and I2/r stay bounded as r -> 0 (returned for the direction terms).
     """
-    if r > 0.0:
-        x0 = np.arccos(min(max(-m / r, -1.0), 1.0))
-    elif m > 0.0:
-        x0 = np.pi
+    # x0 = π (positive everywhere) or 0 (nowhere) exactly, with sin x0 = 0 exactly: I1/r and
+    # I2/r must not pick up round-off from sin(π) when r is tiny.
+    if m >= r:
+        x0, s0, c0, s3 = np.pi, 0.0, -1.0, 0.0
+    elif m <= -r:
+        x0, s0, c0, s3 = 0.0, 0.0, 1.0, 0.0
     else:
-        x0 = 0.0
-    s0 = np.sin(x0)
-    c0 = np.cos(x0)
-    s3 = np.sin(3.0 * x0)
+        x0 = np.arccos(-m / r)
+        s0 = np.sin(x0)
+        c0 = np.cos(x0)
+        s3 = np.sin(3.0 * x0)
     i0 = 2.0 * m * x0 + 2.0 * r * s0
     i1 = 2.0 * m * s0 + r * (x0 + s0 * c0)
     i2 = 2.0 * m * s0 * c0 + r * (s0 + s3 / 3.0)
@@ -286,8 +288,8 @@ def relaxation_step(a, bc, bs, dexx, deyy, dgxy, a_crit, b_ratio, rate, q, dq):
     b_crit = b_ratio * a_crit
     cx = dx / r
     cy = dy / r
-    tgt = (a_crit, -b_crit * cx, -b_crit * cy)
-    cur = (a, bc, bs)
+    tgt = (1.0 * a_crit, -b_crit * cx, -b_crit * cy)
+    cur = (1.0 * a, 1.0 * bc, 1.0 * bs)
     # ∂w = 2k e (cx, cy); ∂(cx, cy)/∂(dx, dy) = [[cy², -cx cy], [-cx cy, cx²]] / r.
     d_tgt_dx = (0.0, -b_crit * cy * cy / r, b_crit * cx * cy / r)
     d_tgt_dy = (0.0, b_crit * cx * cy / r, -b_crit * cx * cx / r)
