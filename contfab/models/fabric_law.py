@@ -254,19 +254,21 @@ def balance_system(a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o, x, y, dxs,
 
 
 @njit(cache=True, error_model="numpy")
-def _solve3(x, b, out):
-    """out = x⁻¹ b for a 3x3 x (Cramer; used where det x >= 1)."""
-    c00 = x[1, 1] * x[2, 2] - x[1, 2] * x[2, 1]
-    c01 = x[1, 2] * x[2, 0] - x[1, 0] * x[2, 2]
-    c02 = x[1, 0] * x[2, 1] - x[1, 1] * x[2, 0]
-    det = x[0, 0] * c00 + x[0, 1] * c01 + x[0, 2] * c02
-    b0, b1, b2 = b[0], b[1], b[2]
-    out[0] = (b0 * c00 + x[0, 1] * (b2 * x[1, 2] - b1 * x[2, 2])
-              + x[0, 2] * (b1 * x[2, 1] - b2 * x[1, 1])) / det
-    out[1] = (x[0, 0] * (b1 * x[2, 2] - b2 * x[1, 2]) + b0 * c01
-              + x[0, 2] * (b2 * x[1, 0] - b1 * x[2, 0])) / det
-    out[2] = (x[0, 0] * (x[1, 1] * b2 - x[2, 1] * b1) + x[0, 1] * (b1 * x[2, 0] - b2 * x[1, 0])
-              + b0 * c02) / det
+def _invert3(x, out):
+    """out = x⁻¹ for a 3x3 x (cofactors; used where det x >= 1)."""
+    out[0, 0] = x[1, 1] * x[2, 2] - x[1, 2] * x[2, 1]
+    out[0, 1] = x[0, 2] * x[2, 1] - x[0, 1] * x[2, 2]
+    out[0, 2] = x[0, 1] * x[1, 2] - x[0, 2] * x[1, 1]
+    out[1, 0] = x[1, 2] * x[2, 0] - x[1, 0] * x[2, 2]
+    out[1, 1] = x[0, 0] * x[2, 2] - x[0, 2] * x[2, 0]
+    out[1, 2] = x[0, 2] * x[1, 0] - x[0, 0] * x[1, 2]
+    out[2, 0] = x[1, 0] * x[2, 1] - x[1, 1] * x[2, 0]
+    out[2, 1] = x[0, 1] * x[2, 0] - x[0, 0] * x[2, 1]
+    out[2, 2] = x[0, 0] * x[1, 1] - x[0, 1] * x[1, 0]
+    inv_det = 1.0 / (x[0, 0] * out[0, 0] + x[0, 1] * out[1, 0] + x[0, 2] * out[2, 0])
+    for i in range(3):
+        for j in range(3):
+            out[i, j] *= inv_det
 
 
 @njit(cache=True, error_model="numpy")
@@ -323,13 +325,17 @@ def fabric_step(a, bc, bs, dexx, deyy, dgxy, c, law, kappa_a, k_c, k_o, a_crit, 
         dys = ws[87:99].reshape((4, 3))
         balance_system(a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o, x, y, dxs, dys,
                        gram, dgram)
-        _solve3(x, y, q)
+        xi = gram          # P is no longer needed: reuse its storage for X⁻¹
+        _invert3(x, xi)
+        for i in range(3):
+            q[i] = xi[i, 0] * y[0] + xi[i, 1] * y[1] + xi[i, 2] * y[2]
         # ∂q = X⁻¹ (∂y - ∂X q)
         for v in range(4):
             for i in range(3):
                 tmp[i] = dys[v, i] - (dxs[v, i, 0] * q[0] + dxs[v, i, 1] * q[1]
                                       + dxs[v, i, 2] * q[2])
-            _solve3(x, tmp, dq[v])
+            for i in range(3):
+                dq[v, i] = xi[i, 0] * tmp[0] + xi[i, 1] * tmp[1] + xi[i, 2] * tmp[2]
     if admissibility_margin(q[0], np.hypot(q[1], q[2])) >= 0.0:
         return False
     q[0], q[1], q[2], moved = project_admissible(q[0], q[1], q[2])

@@ -29,8 +29,9 @@ Yield f and flow N: :mod:`contfab.models.slip_planes`; fabric laws:
    G P_tr + K sin ψ R_tr <= 0 with the isotropic part of ψ(θ) at c_apex (exactly tier 1's at
    isotropy), or — when the face solve finds no point — with the least dilatant plane.
    A face solve that fails outside that region is a failure (status -1).
-6. gp += Δεp1 - Δεp2. The fabric is Φ's output (admissible; within the solve's tolerance of
-   the q in x); if Φ had to project it onto the admissible set, status 3.
+6. Δεp = C⁻¹(σ_tr - σ_{n+1}), gp += Δεp1 - Δεp2, and the fabric is Φ(q_n, Δεp, c_{n+1})
+   (admissible; equal to the q of the solve to its tolerance); if Φ had to project it onto
+   the admissible set, status 3.
 
 Backward Euler is first order in the step size (tests/test_fabric_model.py measures the
 order); every returned state lies on its own yield surface, f(σ_{n+1}; q_{n+1}, c_{n+1}) = 0.
@@ -419,6 +420,14 @@ def isotropic_stiffness_into(bulk, shear, out):
 
 
 @njit(cache=True, error_model="numpy")
+def _elastic_strain(sxx, syy, sxy, bulk, shear):
+    """C⁻¹σ (Voigt, engineering shear): tr = (σxx+σyy)/(2K), deviator /(2G), γ = σxy/G."""
+    vol = 0.25 * (sxx + syy) / bulk
+    dev = 0.25 * (sxx - syy) / shear
+    return vol + dev, vol - dev, sxy / shear
+
+
+@njit(cache=True, error_model="numpy")
 def _inputs_finite(stress_n, state_n, dstrain, dspin, i):
     ok = np.isfinite(dspin[i])
     for j in range(3):
@@ -490,10 +499,13 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
         for j in range(3):
             stress[i, j] = x[j]
         c1 = x[4]
-        dgam = x[3]
-        pxx = dgam * sc.yf[YF_N]
-        pyy = dgam * sc.yf[YF_N + 1]
-        pgg = dgam * sc.yf[YF_N + 2]
+        # Δεp = C⁻¹(σ_tr - σ) (backward Euler's identity; = Δγ N at convergence), and the
+        # fabric law at the final (Δεp, c): the returned state satisfies both exactly.
+        pxx, pyy, pgg = _elastic_strain(ttr[0] - x[0], ttr[1] - x[1], ttr[2] - x[2], bulk,
+                                        shear)
+        projected = fabric_step(q0, bc, bs, pxx, pyy, pgg, c1, int(prm[18]), prm[19],
+                                prm[20], prm[21], prm[22], prm[23], prm[24], sc.fq, sc.dq,
+                                sc.ws)
         # Tangent: solve J X = [C/s_ref; 0], column by column.
         dx = sc.dx
         for j in range(3):
@@ -511,10 +523,7 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
     elif apex:
         stress[i, :] = 0.0
         tangent[i, :, :] = 0.0
-        m_tr = 0.5 * (ttr[0] + ttr[1])
-        pxx = 0.5 * m_tr / bulk + 0.25 * (ttr[0] - ttr[1]) / shear
-        pyy = 0.5 * m_tr / bulk - 0.25 * (ttr[0] - ttr[1]) / shear
-        pgg = ttr[2] / shear
+        pxx, pyy, pgg = _elastic_strain(ttr[0], ttr[1], ttr[2], bulk, shear)
         c1 = c_apex
         projected = fabric_step(q0, bc, bs, pxx, pyy, pgg, c1, int(prm[18]), prm[19], prm[20],
                                 prm[21], prm[22], prm[23], prm[24], sc.fq, sc.dq, sc.ws)
