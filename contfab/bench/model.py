@@ -1,0 +1,79 @@
+"""``contfab bench model``: constitutive updates per second per core, at a yielding state.
+
+Each tier updates the same points: stresses on the yield cone (P in [0.5, 2] p_ref,
+random principal directions) loaded further along their deviator by a strain
+increment of 1e-4 with a small random spin, so every point takes the plastic branch
+(the benchmark checks that and reports the plastic fraction). The kernel runs on one
+thread (per-core figure) with preallocated outputs; the reference is a plain numpy
+elastic update σ + C Δε of the same points in the same run, and each tier's rate is also
+given as a ratio to it. Timings are medians of ``--repeats`` runs.
+"""
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from contfab.bench import median_seconds
+from contfab.models import tiers
+from contfab.models.cone import friction_angles
+from contfab.params import default_params
+from contfab.tensors import isotropic_stiffness
+
+BENCH_TIERS = (0, 1)
+"""Tiers measured (a new tier: add it here once registered in tiers.KERNELS)."""
+POINTS = 200_000
+STRAIN = 1e-4
+
+
+def yielding_points(params, tier: int, n: int, seed: int = 0):
+    """(stress_n, state_n, dstrain, dspin): points on the cone, loaded further plastically."""
+    rng = np.random.default_rng(seed)
+    state = tiers.initial_state(tier, params, n)
+    if "c" in tiers.STATE_NAMES[tier]:
+        c_star = params.tier1.c_star
+        state[:, 1] = rng.uniform(c_star - 0.01, c_star + 0.01, n)
+        t1 = params.array(1)
+        sphi = np.array([np.sin(friction_angles(c, *t1[2:])[0]) for c in state[:, 1]])
+    else:
+        sphi = np.full(n, np.sin(np.radians(params.tier0.phi_deg)))
+    p = params.p_ref * rng.uniform(0.5, 2.0, n)
+    r = sphi * p
+    two = 2.0 * rng.uniform(0.0, np.pi, n)
+    stress = np.stack([-p + r * np.cos(two), -p - r * np.cos(two), r * np.sin(two)], axis=1)
+    dstrain = STRAIN * np.stack([np.cos(two), -np.cos(two), 2.0 * np.sin(two)], axis=1)
+    dspin = 1e-4 * rng.standard_normal(n)
+    return stress, np.ascontiguousarray(state), dstrain, dspin
+
+
+def run(args) -> dict:
+    repeats = getattr(args, "repeats", 5)
+    n = getattr(args, "points", POINTS)
+    params = default_params()
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    figures = {"points": n}
+    try:
+        for tier in BENCH_TIERS:
+            stress, state, dstrain, dspin = yielding_points(params, tier, n)
+            out = tiers.allocate(tier, n)
+            prm = params.array(tier)
+            kernel = tiers.KERNELS[tier]
+
+            def model():
+                kernel(stress, state, dstrain, dspin, prm, out.stress, out.state, out.tangent,
+                       out.status)
+
+            c = isotropic_stiffness(*params.array(tier)[:2])
+
+            def elastic():
+                return stress + np.einsum("ij,nj->ni", c, dstrain)
+
+            t_model = median_seconds(model, repeats=repeats)
+            t_elastic = median_seconds(elastic, repeats=repeats)
+            figures[f"tier{tier}_updates_per_s_per_core"] = n / t_model
+            figures[f"tier{tier}_vs_numpy_elastic"] = t_elastic / t_model
+            figures[f"tier{tier}_plastic_fraction"] = float(np.mean(out.status == 1))
+        figures["numpy_elastic_updates_per_s"] = n / t_elastic
+    finally:
+        numba.set_num_threads(threads)
+    return figures
