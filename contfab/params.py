@@ -82,13 +82,12 @@ class Section:
         for f in fields(self):
             value = getattr(self, f.name)
             where = f"[{self.NAME}] {_key(f)}"
+            accepted = f"{f.metadata['range']}{' ' + f.metadata['unit'] if f.metadata['unit'] else ''}"
             if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise ParamError(f"{where} = {value!r} is not a number "
-                                 f"(accepted range {f.metadata['range']} {f.metadata['unit']})")
+                raise ParamError(f"{where} = {value!r} is not a number (accepted range {accepted})")
             value = float(value)
             if not math.isfinite(value) or value not in f.metadata["range"]:
-                raise ParamError(f"{where} = {value:g} is outside the accepted range "
-                                 f"{f.metadata['range']} {f.metadata['unit']} "
+                raise ParamError(f"{where} = {value:g} is outside the accepted range {accepted} "
                                  f"({f.metadata['doc']})")
             object.__setattr__(self, f.name, value)
         self.check()
@@ -117,12 +116,6 @@ class Section:
             raise ParamError(f"[{cls.NAME}] is missing {', '.join(missing)}")
         return cls(**{by_key[k].name: v for k, v in table.items()})
 
-    @classmethod
-    def describe(cls) -> str:
-        """One line per field: key, unit, accepted range, meaning (for docs and error hints)."""
-        return "\n".join(f"{_key(f):14s} {str(f.metadata['range']):14s} {f.metadata['unit']:12s} "
-                         f"{f.metadata['doc']}" for f in fields(cls))
-
 
 POSITIVE = Range(0.0, math.inf)
 UNIT_OPEN = Range(0.0, 1.0)
@@ -141,10 +134,10 @@ class Regularization(Section):
     """
 
     NAME: ClassVar[str] = "regularization"
-    lam: float = param("-", POSITIVE, "stiffness ratio E_reg / p_ref; rigid-plastic as lambda -> inf",
+    lam: float = param("", POSITIVE, "stiffness ratio E_reg / p_ref; rigid-plastic as lambda -> inf",
                        key="lambda")
     p_ref: float = param("stress", POSITIVE, "the scene's stress scale (e.g. P0)")
-    nu: float = param("-", Range(-1.0, 1.0), "Poisson-like ratio of the regularization", default=0.0)
+    nu: float = param("", Range(-1.0, 1.0), "Poisson-like ratio of the regularization", default=0.0)
 
     def moduli(self) -> tuple[float, float]:
         """(K, G) of the regularization, in the scene's stress unit."""
@@ -209,7 +202,7 @@ class Tier1(Section):
                                "phi' = dphi/dc at c*")
     dpsi_dc_deg: float = param("deg per unit c", Range(0.0, math.inf, lo_closed=True),
                                "psi' = dpsi/dc at c*")
-    c_star: float = param("-", UNIT_OPEN, "critical packing fraction c*")
+    c_star: float = param("", UNIT_OPEN, "critical packing fraction c*")
     phi_min_deg: float = param("deg", Range(0.0, 90.0), "lower clamp of phi(c)", default=1.0)
     phi_max_deg: float = param("deg", Range(0.0, 90.0), "upper clamp of phi(c)", default=60.0)
 
@@ -237,7 +230,7 @@ class Initial(Section):
     """The initial state: packing fraction and fabric (A, B, θp), p(θ) = A + B cos 2(θ - θp)."""
 
     NAME: ClassVar[str] = "initial"
-    c0: float = param("-", UNIT_OPEN, "initial packing fraction")
+    c0: float = param("", UNIT_OPEN, "initial packing fraction")
     A0: float = param("1/rad", Range(0.0, 6.0 / math.pi, lo_closed=True, hi_closed=True),
                       "initial A = z/pi (z: coordination number)", default=3.0 / math.pi)
     B0: float = param("1/rad", Range(0.0, 6.0 / math.pi, lo_closed=True, hi_closed=True),

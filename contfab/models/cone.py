@@ -94,10 +94,12 @@ STATUS_FAILED = -1
 APEX_BAND = 1e-10
 """Relative width of the round-off band at the face/apex boundary (see the module doc)."""
 NEWTON_MAXIT = 60
-NEWTON_RTOL = 1e-14
-"""Tier-1 local solve: |H| (a log-strain residual) at convergence."""
-NEWTON_LINEAR_STEP = 1e-8
-"""Tier-1 local solve: a Newton step below this (relative to c) is the last one."""
+NEWTON_RTOL = 1e-13
+"""Tier-1 local solve: converged when |H| <= NEWTON_RTOL·Δγ (ln c consistent with the
+plastic volume change to 1e-13 of the plastic shear strain of the step)."""
+NEWTON_LINEAR_STEP = 1e-9
+"""Tier-1 local solve: a Newton step |Δy| below this is the last one, applied linearly;
+the error, ½ H''Δy² ~ ½ (ψ' c)² (1 + K/G)² Δγ·1e-18, is far below NEWTON_RTOL·Δγ."""
 
 
 # --------------------------------------------------------------------------- shared pieces
@@ -278,40 +280,41 @@ def update_points_tier0(stress_n, state_n, dstrain, dspin, prm, stress, state, t
 # --------------------------------------------------------------------------- tier 1
 
 @njit(cache=True, error_model="numpy")
-def _tier1_face(c, c_n, p_tr, r_tr, bulk, shear, prm):
-    """The tier-1 face return for c_{n+1} = c, and what Newton and the tangent need.
+def _tier1_face(y, c_n, p_tr, r_tr, bulk, shear, prm):
+    """The tier-1 face return for c_{n+1} = c_n exp(y), and what Newton and the tangent need.
 
-    Returns (H, H_c, sφ, sψ, sφ_c, sψ_c, D, a, Δγ, dφ/dc, dψ/dc) with the face formulas
-    H(c) = ln(c/c_n) + Δγ(c) sin ψ(c), Δγ = (R_tr - sin φ P_tr)/D, and derivatives in c.
+    Returns (H, H_y, sφ, sψ, sφ_y, sψ_y, D, a, Δγ, dφ/dc, dψ/dc) with the face formulas
+    H(y) = y + Δγ(y) sin ψ(y), Δγ = (R_tr - sin φ P_tr)/D, and derivatives in y.
     The face is valid where a > 0. (|φ|, |ψ| < π/2, so cos = sqrt(1 - sin²).)
     """
+    c = c_n * np.exp(y)
     phi, psi, phi_c, psi_c = friction_angles(c, prm[2], prm[3], prm[4], prm[5], prm[6], prm[7])
     sphi = np.sin(phi)
     spsi = np.sin(psi)
-    sphi_c = np.sqrt(1.0 - sphi * sphi) * phi_c
-    spsi_c = np.sqrt(1.0 - spsi * spsi) * psi_c
+    sphi_y = np.sqrt(1.0 - sphi * sphi) * phi_c * c
+    spsi_y = np.sqrt(1.0 - spsi * spsi) * psi_c * c
     d = shear + bulk * sphi * spsi
     a = shear * p_tr + bulk * spsi * r_tr
     num = r_tr - sphi * p_tr
     dgam = num / d
-    dgam_c = -sphi_c * p_tr / d - num * bulk * (sphi_c * spsi + sphi * spsi_c) / (d * d)
-    h = np.log1p((c - c_n) / c_n) + dgam * spsi
-    h_c = 1.0 / c + dgam_c * spsi + dgam * spsi_c
-    return h, h_c, sphi, spsi, sphi_c, spsi_c, d, a, dgam, phi_c, psi_c
+    dgam_y = -sphi_y * p_tr / d - num * bulk * (sphi_y * spsi + sphi * spsi_y) / (d * d)
+    h = y + dgam * spsi
+    h_y = 1.0 + dgam_y * spsi + dgam * spsi_y
+    return h, h_y, sphi, spsi, sphi_y, spsi_y, d, a, dgam, phi_c, psi_c
 
 
 @njit(cache=True, error_model="numpy")
-def _tier1_tangent(r_tr, n_d, n_t, rho, bulk, shear, sphi, spsi, sphi_c, spsi_c, d, a, h_c, t):
-    """Face tangent of tier 1: P = a/D and R = sin φ P at c(P_tr, R_tr) from H = 0."""
+def _tier1_tangent(r_tr, n_d, n_t, rho, bulk, shear, sphi, spsi, sphi_y, spsi_y, d, a, h_y, t):
+    """Face tangent of tier 1: P = a/D and R = sin φ P at y(P_tr, R_tr) from H = 0."""
     # H's partials: dΔγ/dP_tr = -sφ/D, dΔγ/dR_tr = 1/D, so H_P = -sψ sφ/D, H_R = sψ/D.
-    c_p = spsi * sphi / (d * h_c)
-    c_r = -spsi / (d * h_c)
+    y_p = spsi * sphi / (d * h_y)
+    y_r = -spsi / (d * h_y)
     p = max(a, 0.0) / d
-    p_c = bulk * spsi_c * r_tr / d - a * bulk * (sphi_c * spsi + sphi * spsi_c) / (d * d)
-    a_p = shear / d + p_c * c_p
-    a_r = bulk * spsi / d + p_c * c_r
-    b_p = sphi * a_p + p * sphi_c * c_p
-    b_r = sphi * a_r + p * sphi_c * c_r
+    p_y = bulk * spsi_y * r_tr / d - a * bulk * (sphi_y * spsi + sphi * spsi_y) / (d * d)
+    a_p = shear / d + p_y * y_p
+    a_r = bulk * spsi / d + p_y * y_r
+    b_p = sphi * a_p + p * sphi_y * y_p
+    b_r = sphi * a_r + p * sphi_y * y_r
     _coaxial_tangent(a_p, a_r, b_p, b_r, n_d, n_t, rho, bulk, shear, t)
 
 
@@ -320,7 +323,6 @@ def _tier1_point(i, stress_n, state_n, dstrain, dspin, prm, sin_phi_star, stress
                  tangent, status):
     bulk = prm[0]
     shear = prm[1]
-    c_star = prm[5]
     gp_n = state_n[i, 0]
     c_n = state_n[i, 1]
     if not (0.0 < c_n < 1.0):
@@ -329,9 +331,9 @@ def _tier1_point(i, stress_n, state_n, dstrain, dspin, prm, sin_phi_star, stress
     p_tr, r_tr, n_d, n_t, scale = _trial(stress_n[i, 0], stress_n[i, 1], stress_n[i, 2],
                                          dstrain[i, 0], dstrain[i, 1], dstrain[i, 2], dspin[i],
                                          bulk, shear)
-    # H at c = c_n: also gives sin φ(c_n) for the elastic check.
-    h, h_c, sphi, spsi, sphi_c, spsi_c, d, a, dgam, phi_c, psi_c = _tier1_face(
-        c_n, c_n, p_tr, r_tr, bulk, shear, prm)
+    # H at y = 0 (c = c_n): also gives sin φ(c_n) for the elastic check.
+    h, h_y, sphi, spsi, sphi_y, spsi_y, d, a, dgam, phi_c, psi_c = _tier1_face(
+        0.0, c_n, p_tr, r_tr, bulk, shear, prm)
     if r_tr - sphi * p_tr <= 0.0:
         _write_stress(stress, i, p_tr, r_tr, n_d, n_t)
         state[i, 0] = gp_n
@@ -339,72 +341,73 @@ def _tier1_point(i, stress_n, state_n, dstrain, dspin, prm, sin_phi_star, stress
         isotropic_stiffness_into(bulk, shear, tangent[i])
         status[i] = STATUS_ELASTIC
         return
-    # Apex first, with c = c_n exp(P_tr/K) in closed form. It needs a <= 0, impossible
-    # when G P_tr - K sin φ* R_tr > 0 (sin ψ >= -sin φ* at every c).
+    # Apex first, with y = P_tr/K in closed form. It needs a <= 0, impossible when
+    # G P_tr - K sin φ* R_tr > 0 (sin ψ >= -sin φ* at every c).
     if shear * p_tr - bulk * sin_phi_star * r_tr <= 0.0:
-        c_apex = c_n * np.exp(p_tr / bulk)
-        ha, ha_c, sphia, spsia, sphia_c, spsia_c, da, aa, _, _, _ = _tier1_face(
-            c_apex, c_n, p_tr, r_tr, bulk, shear, prm)
+        y_apex = p_tr / bulk
+        ha, ha_y, sphia, spsia, sphia_y, spsia_y, da, aa, _, _, _ = _tier1_face(
+            y_apex, c_n, p_tr, r_tr, bulk, shear, prm)
         if aa <= 0.0:
             _write_stress(stress, i, 0.0, 0.0, n_d, n_t)
             state[i, 0] = gp_n + r_tr / shear
-            state[i, 1] = c_apex
+            state[i, 1] = c_n * np.exp(y_apex)
             status[i] = STATUS_APEX
             if r_tr > 0.0 and aa > -APEX_BAND * (bulk + shear) * scale:
                 # round-off band: the face's one-sided limit tangent at a -> 0+
-                _tier1_tangent(r_tr, n_d, n_t, 0.0, bulk, shear, sphia, spsia, sphia_c,
-                               spsia_c, da, aa, ha_c, tangent[i])
+                _tier1_tangent(r_tr, n_d, n_t, 0.0, bulk, shear, sphia, spsia, sphia_y,
+                               spsia_y, da, aa, ha_y, tangent[i])
             else:
                 tangent[i, :, :] = 0.0
             return
-    # Face: Newton on H(c) = 0 from c_n, safeguarded by bisection on [c_n, c*] (or [c*, c_n]).
-    lo = min(c_n, c_star)
-    hi = max(c_n, c_star)
-    c = c_n
+    # Face: Newton on H(y) = 0 from y = 0, safeguarded by bisection on [0, y*] or [y*, 0].
+    y_star = np.log(prm[5] / c_n)
+    lo = min(0.0, y_star)
+    hi = max(0.0, y_star)
+    y = 0.0
     converged = False
     for _ in range(NEWTON_MAXIT):
         if a <= 0.0:     # beyond the face: H continues with the apex's tr Δεp = -P_tr/K
-            h = np.log1p((c - c_n) / c_n) - p_tr / bulk
-            h_c = 1.0 / c
-        if abs(h) <= NEWTON_RTOL:
+            h = y - p_tr / bulk
+            h_y = 1.0
+        if abs(h) <= NEWTON_RTOL * dgam:
             converged = True
             break
         if h > 0.0:
-            hi = c
+            hi = y
         else:
-            lo = c
-        c_new = c - h / h_c if h_c > 0.0 else 0.5 * (lo + hi)
-        if not (lo < c_new < hi):
-            c_new = 0.5 * (lo + hi)
-        elif a > 0.0 and abs(c_new - c) <= NEWTON_LINEAR_STEP * c:
-            # Last Newton step: H, sin φ, sin ψ are linear in c to O(step²) ~ 1e-16 on one
-            # smooth piece of φ(c), ψ(c), so update them linearly (saves an evaluation).
-            _, _, phi_c_new, psi_c_new = friction_angles(c_new, prm[2], prm[3], prm[4],
-                                                         prm[5], prm[6], prm[7])
+            lo = y
+        y_new = y - h / h_y if h_y > 0.0 else 0.5 * (lo + hi)
+        if not (lo < y_new < hi):
+            y_new = 0.5 * (lo + hi)
+        elif a > 0.0 and abs(y_new - y) <= NEWTON_LINEAR_STEP:
+            # Last Newton step: on one smooth piece of φ(c), ψ(c), H - y, sin φ and sin ψ
+            # are linear in y to O(step²) << NEWTON_RTOL·Δγ: update them linearly.
+            _, _, phi_c_new, psi_c_new = friction_angles(c_n * np.exp(y_new), prm[2], prm[3],
+                                                         prm[4], prm[5], prm[6], prm[7])
             if phi_c_new == phi_c and psi_c_new == psi_c:
-                sphi += sphi_c * (c_new - c)
-                spsi += spsi_c * (c_new - c)
+                sphi += sphi_y * (y_new - y)
+                spsi += spsi_y * (y_new - y)
                 d = shear + bulk * sphi * spsi
                 a = shear * p_tr + bulk * spsi * r_tr
                 dgam = (r_tr - sphi * p_tr) / d
-                c = c_new
+                y = y_new
                 converged = True
                 break
-        if c_new == c:
-            converged = abs(h) <= 1e3 * NEWTON_RTOL
+        if y_new == y:
+            converged = abs(h) <= 1e3 * NEWTON_RTOL * dgam
             break
-        c = c_new
-        h, h_c, sphi, spsi, sphi_c, spsi_c, d, a, dgam, phi_c, psi_c = _tier1_face(
-            c, c_n, p_tr, r_tr, bulk, shear, prm)
-    if not converged or h_c <= 0.0 or a <= 0.0:
+        y = y_new
+        h, h_y, sphi, spsi, sphi_y, spsi_y, d, a, dgam, phi_c, psi_c = _tier1_face(
+            y, c_n, p_tr, r_tr, bulk, shear, prm)
+    if not converged or h_y <= 0.0 or a <= 0.0:
         status[i] = STATUS_FAILED
         return
     p = a / d
     r = sphi * p
     _write_stress(stress, i, p, r, n_d, n_t)
     state[i, 0] = gp_n + dgam
-    state[i, 1] = c
-    _tier1_tangent(r_tr, n_d, n_t, r / r_tr, bulk, shear, sphi, spsi, sphi_c, spsi_c, d, a, h_c,
+    state[i, 1] = c_n * np.exp(y)
+    _tier1_tangent(r_tr, n_d, n_t, r / r_tr, bulk, shear, sphi, spsi, sphi_y, spsi_y, d, a, h_y,
                    tangent[i])
     status[i] = STATUS_FACE
 
