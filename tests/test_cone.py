@@ -128,8 +128,8 @@ def check_update(tier, params, stress_n, state_n, dstrain, dspin):
     assert np.allclose(res.state[:, 0] - state_n[:, 0], diff, rtol=1e-9, atol=0) or \
         np.all(np.abs(res.state[:, 0] - state_n[:, 0] - diff) <= 1e-9 * diff + floor)
     if tier == 1:
-        # (+ 4e-16: one rounding of the ratio c/c_n inside the log)
-        assert np.all(np.abs(np.log(c / c_n) + tr) <= 1e-12 * diff + floor + 4e-16)
+        # (+ 1e-15: a few roundings of c, carried as c_n·Πexp(step), and of c/c_n in the log)
+        assert np.all(np.abs(np.log(c / c_n) + tr) <= 1e-12 * diff + floor + 1e-15)
 
     # tangent vs central differences where the branch (and the piece of φ(c), ψ(c)) is the
     # same on both sides; step 1e-6 of the strain scale of the point
@@ -178,7 +178,7 @@ log_pref = st.floats(-3.0, 3.0)
 nu = st.floats(-0.5, 0.1)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=120, deadline=None)
 @given(phi_deg, psi_fraction, log_lam, log_pref, nu, st.integers(0, 2**32 - 1))
 def test_tier0_return_yield_flow_tangent(phi, t, log_lam, log_pref, nu, seed):
     params = make_params(0, lam=10**log_lam, p_ref=10**log_pref, nu=nu, phi=phi, psi=t * phi)
@@ -186,7 +186,7 @@ def test_tier0_return_yield_flow_tangent(phi, t, log_lam, log_pref, nu, seed):
     check_update(0, params, *points)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=120, deadline=None)
 @given(phi_deg, st.floats(0.0, 600.0), st.floats(0.0, 1000.0), st.floats(0.5, 0.9),
        st.floats(0.0, 1.0), st.floats(0.0, 1.0), log_lam, log_pref, nu, st.integers(0, 2**32 - 1))
 def test_tier1_return_yield_flow_c_tangent(phi_star, dphi, dpsi, c_star, u_min, u_max, log_lam,
