@@ -42,9 +42,9 @@ explicit for given y, so one scalar equation remains,
 solved by Newton safeguarded by bisection on the bracket c_{n+1} between c_n and c*
 (y between 0 and y* = ln(c*/c_n)): H < 0 at one end and > 0 at the other because
 ψ(c*) = 0 and φ, ψ do not decrease with c (checked on load), and every root in it has
-Δγ > 0. No step divides by sin ψ,
-so ψ = 0 is not special (the ENGINEERING "zero cohesion, zero dilatancy" trap). The
-apex is tested first: it has c_{n+1} = c_n exp(P_tr/K) in closed form.
+Δγ > 0. No step divides by sin ψ, so ψ = 0 is not special (the ENGINEERING "zero
+cohesion, zero dilatancy" trap). The apex is tested first: it has
+c_{n+1} = c_n exp(P_tr/K) in closed form.
 
 **Consistent tangent** ∂σ_{n+1}/∂Δε (not including Δω), exact on every branch:
 elastic C; face: differentiating P(P_tr, R_tr, y), R = sin φ P and the rotation of n
