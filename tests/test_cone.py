@@ -131,8 +131,9 @@ def check_update(tier, params, stress_n, state_n, dstrain, dspin):
         assert np.all(np.abs(np.log(c / c_n) + tr) <= 1e-12 * diff + floor + 1e-15)
 
     # tangent vs central differences where the branch (and the piece of φ(c), ψ(c)) is the
-    # same on both sides; step 1e-6 of the strain scale of the point
-    h = 1e-6 * (np.abs(dstrain).max(axis=1) + np.abs(stress_n).max(axis=1) / g)
+    # same on both sides; step 1e-7 of the strain scale of the point (truncation error
+    # ~ step², round-off ~ 1e-16/step: both <= 1e-8 relative where measured)
+    h = 1e-7 * (np.abs(dstrain).max(axis=1) + np.abs(stress_n).max(axis=1) / g)
     d_fd, sides = fd_tangent(tier, params, stress_n, state_n, dstrain, dspin, h)
     same = np.ones(len(h), bool)
     for s in sides:
@@ -314,3 +315,30 @@ def test_friction_angles_follow_the_linear_law_and_its_clamps():
     phi, psi, _, psi_c = friction_angles(0.7, *prm)          # φ at φmin, ψ = -φ
     assert np.degrees([phi, psi]) == pytest.approx([10.0, -10.0]) and psi_c == 0.0
     assert friction_angles(0.8, *prm)[1] == 0.0             # ψ(c*) = 0
+
+
+def test_tier1_local_solve_does_not_cycle_between_a_clamp_and_the_apex_continuation():
+    """Found by a soak run: H has slope 1 both where ψ(c) is clamped (c > c* + ...) and in
+    its apex continuation, and is steep in between, so plain Newton jumped back and forth
+    between two points forever; the bisection safeguard must take over."""
+    params = make_params(1, lam=335.32334254554246, p_ref=107.3769338330418, nu=-0.17674876516767063,
+                         phi_star=3.7172831425398623, dphi=469.33171658564146,
+                         dpsi=728.3947549838374, c_star=0.6207524227313319,
+                         phi_min=1.7901805457357356, phi_max=10.056995717798399)
+    stress = np.array([[-524.8824243639351, -746.6923416033694, -5.185398844652718]])
+    state = np.array([[0.0, 0.670219784517]])
+    dstrain = np.array([[0.2559144354859468, -0.1767623681539971, -0.05354570861303294]])
+    counts = check_update(1, params, stress, state, dstrain, np.array([0.0055742042855530085]))
+    assert counts[STATUS_FACE] == 1
+
+
+def test_tier1_local_solve_falls_back_to_bisection_when_newton_stalls():
+    """Found by a soak run: Newton from each end of the bracket lands just inside the
+    other end (Δγ < 0 over part of it), shrinking the bracket by 1e-9 per iteration."""
+    params = make_params(1, lam=86.89184873708996, p_ref=0.7149576355326833, nu=-0.3229152532464896,
+                         phi_star=44.742787368884365, dphi=503.3137706039964, dpsi=290.84964971017,
+                         c_star=0.5324461927003603, phi_min=19.051875141152088,
+                         phi_max=47.033053886228195)
+    points = random_points(np.random.default_rng(3042667000), 1, params, 48)
+    counts = check_update(1, params, *points)
+    assert counts[STATUS_FACE] > 0

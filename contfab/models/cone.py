@@ -364,11 +364,16 @@ def _tier1_point(i, stress_n, state_n, dstrain, dspin, prm, sin_phi_star, stress
                 tangent[i, :, :] = 0.0
             return
     # Face: Newton on H(y) = 0 from y = 0, safeguarded by bisection on the bracket
-    # c in [c_n, c*] (or [c*, c_n]); c = c_n exp(y) is carried along.
+    # c in [c_n, c*] (or [c*, c_n]); c = c_n exp(y) is carried along. As in "rtsafe", a
+    # Newton step that leaves the bracket or is not at least twice shorter than the step
+    # before the last one is replaced by a bisection (H can be steep between two pieces
+    # where it has slope 1, and plain Newton then bounces between them).
     lo = min(c_n, prm[5])
     hi = max(c_n, prm[5])
     y = 0.0
     c = c_n
+    dy_last = (hi - lo) / lo          # >= the bracket's width in y
+    dy_before = dy_last
     converged = False
     for _ in range(NEWTON_MAXIT):
         if a <= 0.0:     # beyond the face: H continues with the apex's tr Δεp = -P_tr/K
@@ -398,13 +403,15 @@ def _tier1_point(i, stress_n, state_n, dstrain, dspin, prm, sin_phi_star, stress
                 c = c_new
                 converged = True
                 break
-        c_new = c * np.exp(step) if h_y > 0.0 else -1.0
-        if not (lo <= c_new <= hi):      # bisection in c (rare)
-            c_new = 0.5 * (lo + hi)
-            step = np.log(c_new / c)
-        if c_new == c:
+        c_new = c * np.exp(step) if h_y > 0.0 and abs(step) <= 0.5 * dy_before else -1.0
+        if c_new == c:                   # no representable progress in c
             converged = abs(h) <= 1e3 * NEWTON_RTOL * dgam
             break
+        if not (lo < c_new < hi):        # bisection in c (the bracket's ends are old iterates)
+            c_new = 0.5 * (lo + hi)
+            step = np.log(c_new / c)
+        dy_before = dy_last
+        dy_last = abs(step)
         y += step
         c = c_new
         h, h_y, sphi, spsi, sphi_y, spsi_y, d, a, dgam, phi_c, psi_c = _tier1_face(
