@@ -38,8 +38,32 @@ def _run_paths(args) -> None:
                   f"{'; stress-controlled ' + sig if sig else ''}{'; until ' + until if until else ''}")
 
 
+# --------------------------------------------------------------------------- bench
+
+BENCHES = {
+    "model": "contfab.bench.model",
+}
+"""Benchmark name -> module with ``run(args) -> dict`` of figures."""
+
+
+def _add_bench(p: argparse.ArgumentParser) -> None:
+    p.add_argument("name", choices=sorted(BENCHES), help="which benchmark")
+    p.add_argument("--json", action="store_true", help="print the figures as one JSON object")
+    p.add_argument("--repeats", type=int, default=5, help="timed repeats per figure (median)")
+
+
+def _run_bench(args) -> None:
+    import importlib
+
+    from contfab.bench import print_figures
+
+    figures = importlib.import_module(BENCHES[args.name]).run(args)
+    print_figures(f"contfab bench {args.name}", figures, args.json)
+
+
 COMMANDS = {
     "paths": (_add_paths, _run_paths, "list the standard loading paths, or show one"),
+    "bench": (_add_bench, _run_bench, "speed figures of a part (--json for tracking)"),
 }
 
 

@@ -1,1 +1,1 @@
-"""Constitutive model tiers 0-2 (DESIGN §4): return-mapping kernels behind one interface."""
+"""Constitutive model tiers behind one update interface (:mod:`contfab.models.tiers`)."""
