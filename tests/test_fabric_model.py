@@ -3,11 +3,11 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from conftest import stress_at
+from conftest import model_params, stress_at, update
 from contfab.models import fabric_model as fm
 from contfab.models import slip_planes as sp
 from contfab.models import fabric_law
-from contfab.models.fabric_law import LAW_BALANCE, LAW_RELAXATION, rotate_fabric
+from contfab.models.fabric_law import LAW_BALANCE, rotate_fabric
 from contfab.tensors import rotate
 from dem.conventions import admissibility_margin
 
@@ -24,9 +24,9 @@ def _yield(prm, stress, c, a, bc, bs):
     return sp.yield_value(*stress, sp.fabric_terms(c, a, bc, bs, prm), prm[16], 64, th)
 
 
-def _update(prm, stress, state, de, dw=0.0):
-    s, q, t, status = fm.update(np.atleast_2d(stress), np.atleast_2d(state), np.atleast_2d(de),
-                                np.atleast_1d(float(dw)), prm)
+def _update(params, stress, state, de, dw=0.0):
+    s, q, t, status = update(params, np.atleast_2d(stress), np.atleast_2d(state),
+                             np.atleast_2d(de), np.atleast_1d(float(dw)))
     return s[0], q[0], t[0], int(status[0])
 
 
@@ -45,13 +45,13 @@ def _on_surface(prm, alpha, state):
 @settings(max_examples=60, deadline=None)
 @given(inside=st.floats(0.0, 1.0), alpha=st.floats(0, np.pi), b=st.floats(0, 0.4),
        theta_p=st.floats(0, np.pi), dw=st.floats(-7.0, 7.0))
-def test_rigid_rotation_is_exact(tier2_prm, inside, alpha, b, theta_p, dw):
+def test_rigid_rotation_is_exact(inside, alpha, b, theta_p, dw):
     # Acceptance 4: no strain, a spin: σ rotates, θp turns by Δω, A and B do not change —
     # from states inside the cone up to on its surface (the hardest: f = 0 to round-off).
-    prm = tier2_prm(**ANISO)
+    params = model_params(**ANISO)
     q = _state(0.81, 0.95, b, theta_p)
-    s = inside * _on_surface(prm, alpha, q) + (1 - inside) * stress_at(1.0, 0.0, alpha)
-    s2, q2, _, status2 = _update(prm, s, q, np.zeros(3), dw)
+    s = inside * _on_surface(params.array(2), alpha, q) + (1 - inside) * stress_at(1.0, 0.0, alpha)
+    s2, q2, _, status2 = _update(params, s, q, np.zeros(3), dw)
     assert status2 == fm.STATUS_ELASTIC
     assert s2 == pytest.approx(np.array(rotate(*s, dw)), rel=0, abs=0)
     assert q2[[0, 1, 2]].tolist() == q[[0, 1, 2]].tolist()            # gp, c, A: bitwise
@@ -62,8 +62,8 @@ def test_rigid_rotation_is_exact(tier2_prm, inside, alpha, b, theta_p, dw):
 
 
 @pytest.mark.parametrize("theta_p", [0.0, 0.8])
-def test_isotropic_fabric_is_not_singular(tier2_prm, theta_p):
-    prm = tier2_prm(**ANISO)
+def test_isotropic_fabric_is_not_singular(theta_p):
+    prm = model_params(**ANISO)
     stress = stress_at(1.0, 0.4, 0.3)
     de = 2e-3 * np.array([0.4, -1.0, 0.5])
     iso = _update(prm, stress, _state(0.82, 0.95, 0.0, 0.0), de, 1e-3)
@@ -80,13 +80,14 @@ def test_isotropic_fabric_is_not_singular(tier2_prm, theta_p):
        de=st.lists(st.floats(-1, 1), min_size=3, max_size=3), size=st.floats(-5, -2),
        dw=st.floats(-1e-2, 1e-2))
 def test_face_return_solves_backward_euler_and_tangent_matches_differences(
-        tier2_prm, ratio, alpha, b, theta_p, c, de, size, dw):
-    prm = tier2_prm(**ANISO)
+        ratio, alpha, b, theta_p, c, de, size, dw):
+    params = model_params(**ANISO)
+    prm = params.array(2)
     bulk, shear = prm[0], prm[1]
     stress = stress_at(1.0, ratio, alpha)
     state = _state(c, 0.95, b, theta_p)
     de = 10.0 ** size * np.array(de)
-    s, q, t, status = _update(prm, stress, state, de, dw)
+    s, q, t, status = _update(params, stress, state, de, dw)
     if status != fm.STATUS_FACE:
         return
     c_mat = np.array([[bulk + shear, bulk - shear, 0], [bulk - shear, bulk + shear, 0],
@@ -108,17 +109,17 @@ def test_face_return_solves_backward_euler_and_tangent_matches_differences(
     for j in range(3):
         e = np.zeros(3)
         e[j] = h
-        sp_, _, _, stp = _update(prm, stress, state, de + e, dw)
-        sm_, _, _, stm = _update(prm, stress, state, de - e, dw)
+        sp_, _, _, stp = _update(params, stress, state, de + e, dw)
+        sm_, _, _, stm = _update(params, stress, state, de - e, dw)
         if stp != fm.STATUS_FACE or stm != fm.STATUS_FACE:
             return
         fd[:, j] = (sp_ - sm_) / (2 * h)
     assert np.abs(fd - t).max() <= 1e-6 * np.abs(c_mat).max()
 
 
-def test_tension_trial_returns_to_the_apex(tier2_prm):
-    prm = tier2_prm(**ANISO)
-    bulk = prm[0]
+def test_tension_trial_returns_to_the_apex():
+    prm = model_params(**ANISO)
+    bulk = prm.array(2)[0]
     stress = stress_at(0.1, 0.02, 0.3)
     state = _state(0.80, 0.95, 0.2, 0.4)
     de = np.array([3e-3, 2e-3, 1e-3])
@@ -129,9 +130,9 @@ def test_tension_trial_returns_to_the_apex(tier2_prm):
     assert q[1] == pytest.approx(0.80 * np.exp(trial_p / bulk), rel=1e-14)
 
 
-def test_bad_input_fails_with_inputs_returned_and_never_nan(tier2_prm):
-    prm = tier2_prm(**ANISO)
-    bulk, shear = prm[0], prm[1]
+def test_bad_input_fails_with_inputs_returned_and_never_nan():
+    prm = model_params(**ANISO)
+    bulk, shear = prm.array(2)[:2]
     good_s = stress_at(1.0, 0.3, 0.2)
     good_q = _state(0.81, 0.95, 0.2, 0.4)
     rows = [(np.array([np.nan, -1, 0]), good_q, np.zeros(3), 0.0),
@@ -141,7 +142,7 @@ def test_bad_input_fails_with_inputs_returned_and_never_nan(tier2_prm):
             (good_s, _state(1.2, 0.95, 0.2, 0.4), np.zeros(3), 0.0),
             (good_s, _state(0.0, 0.95, 0.2, 0.4), np.zeros(3), 0.0)]
     stress, state, de, dw = (np.array(x) for x in zip(*rows))
-    s, q, t, status = fm.update(stress, state, de, dw, prm)
+    s, q, t, status = update(prm, stress, state, de, dw)
     assert (status == fm.STATUS_FAILED).all()
     assert np.array_equal(s, stress, equal_nan=True) and np.array_equal(q, state, equal_nan=True)
     assert t == pytest.approx(np.broadcast_to(
@@ -151,8 +152,8 @@ def test_bad_input_fails_with_inputs_returned_and_never_nan(tier2_prm):
 @settings(max_examples=60, deadline=None)
 @given(de=st.lists(st.floats(-1, 1), min_size=3, max_size=3), size=st.floats(-12, 1),
        ratio=st.floats(0, 2), p=st.floats(0, 10), dw=st.floats(-10, 10))
-def test_extreme_increments_give_finite_results(tier2_prm, de, size, ratio, p, dw):
-    prm = tier2_prm(**ANISO)
+def test_extreme_increments_give_finite_results(de, size, ratio, p, dw):
+    prm = model_params(**ANISO)
     s, q, t, status = _update(prm, stress_at(p, ratio * p, 0.4), _state(0.81, 0.95, 0.3, 0.2),
                               10.0 ** size * np.array(de), dw)
     assert status != fm.STATUS_FAILED
@@ -174,9 +175,9 @@ def _wandering_increments(rng, n, steps, scale):
 
 
 def _update_cutting(prm, stress, state, de, dw, depth=0):
-    """fm.update as a caller uses it: failed points redo their step as two halves (the
+    """tiers.update as a caller uses it: failed points redo their step as two halves (the
     contract's step cutting). Returns (stress, state, status, number of cuts)."""
-    s, q, _, status = fm.update(stress, state, de, dw, prm)
+    s, q, _, status = update(prm, stress, state, de, dw)
     failed = np.flatnonzero(status == fm.STATUS_FAILED)
     cuts = 0
     if failed.size and depth < 12:
@@ -193,11 +194,11 @@ def _update_cutting(prm, stress, state, de, dw, depth=0):
 @settings(max_examples=5, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), scale=st.floats(-4.0, -2.5),
        law=st.sampled_from(["balance", "balance mean-field", "relaxation"]))
-def test_fabric_admissible_on_every_step_of_1e5_random_increments(tier2_prm, seed, scale, law):
+def test_fabric_admissible_on_every_step_of_1e5_random_increments(seed, scale, law):
     # Acceptance 4: 100 points x 1000 steps of random strain increments and spins.
     coeffs = {"balance": {}, "balance mean-field": dict(kappa_a=1.0, k_c=1.0, k_o=1.0),
-              "relaxation": dict(fabric_law=LAW_RELAXATION)}[law]
-    prm = tier2_prm(**dict(ANISO, **coeffs))
+              "relaxation": dict(fabric_law="relaxation")}[law]
+    prm = model_params(**dict(ANISO, **coeffs))
     rng = np.random.default_rng(seed)
     n, steps = 100, 1000
     stress = np.tile(stress_at(1.0, 0.3, 0.0), (n, 1))
@@ -235,14 +236,14 @@ def _run(prm, n, graded=False):
     stress = stress_at(1.0, 0.41, 0.0)[None, :]
     state = _state(0.82, 0.95, 0.2, 0.4)[None, :]
     for k in range(n):
-        stress, state, _, status = fm.update(stress, state, de[k:k + 1], dw[k:k + 1], prm)
+        stress, state, _, status = update(prm, stress, state, de[k:k + 1], dw[k:k + 1])
         assert status[0] != fm.STATUS_FAILED
     return np.concatenate([stress[0], state[0, 1:]])
 
 
-def test_step_size_convergence_is_first_order_and_path_not_time(tier2_prm):
-    # Acceptance 6: backward Euler with the fabric explicit over a step is first order.
-    prm = tier2_prm(bulk=300.0, shear=200.0, **ANISO)
+def test_step_size_convergence_is_first_order_and_path_not_time():
+    # Acceptance 6: backward Euler is first order in the step size.
+    prm = model_params(lam=480.0, nu=0.2, **ANISO)          # K = 300, G = 200
     ns = [40, 80, 160, 320, 640]
     runs = [_run(prm, n) for n in ns]
     diffs = [np.abs(runs[i] - runs[i + 1]).max() for i in range(len(ns) - 1)]
@@ -252,3 +253,64 @@ def test_step_size_convergence_is_first_order_and_path_not_time(tier2_prm):
     graded = [_run(prm, n, graded=True) for n in (160, 640)]
     assert np.abs(graded[1] - runs[-1]).max() < 2 * diffs[-1]
     assert np.abs(graded[1] - runs[-1]).max() < 0.5 * np.abs(graded[0] - runs[2]).max()
+
+
+def _strain_path(n, c0):
+    """A rotating biaxial strain path with slight dilation/compaction (dense or loose start)."""
+    t = np.linspace(0.0, 1.0, n)
+    de = np.stack([np.full(n, 4e-4), np.full(n, -5e-4), 1e-4 * np.sin(6 * t)], axis=1)
+    return de, 3e-4 * np.cos(4 * t)
+
+
+@pytest.mark.parametrize("frozen_a", [False, True])
+@pytest.mark.parametrize("c0", [0.84, 0.78])
+def test_reduces_to_tier1_with_isotropic_plane_angles(c0, frozen_a):
+    # Acceptance 3: a2 = b2 = 0 (and a1 = b1 = 0, or a1 ≠ 0 with A frozen: all fabric
+    # coefficients 0), an ANISOTROPIC start fabric, spin, dense and loose: the same path as
+    # tier 1 to 1e-8.
+    if frozen_a:
+        a0 = 0.955
+        tier2 = dict(a0_deg=25.0 - 6.0 * a0, a1_deg=6.0, b0_deg=-2.0 * a0, b1_deg=2.0,
+                     kappa_a=0.0, k_c=0.0, k_o=0.0, a3_deg=40.0, b3_deg=-10.0)
+    else:
+        tier2 = dict(a3_deg=40.0, b3_deg=-10.0)
+    params = model_params(lam=1000.0, nu=0.2, **tier2)
+    de, dw = _strain_path(400, c0)
+    s1 = s2 = np.array([[-1.0, -1.0, 0.0]])
+    q1 = np.array([[0.0, c0]])
+    q2 = np.array([[0.0, c0, 0.955, 0.15, -0.08]])
+    worst = np.zeros(4)
+    for k in range(len(dw)):
+        s1, q1, t1, st1 = update(params, s1, q1, de[k:k + 1], dw[k:k + 1], tier=1)
+        s2, q2, t2, st2 = update(params, s2, q2, de[k:k + 1], dw[k:k + 1], tier=2)
+        assert st1[0] == st2[0] or {st1[0], st2[0]} == {fm.STATUS_FACE, fm.STATUS_PROJECTED}
+        worst = np.maximum(worst, [np.abs(s1 - s2).max(), abs(q1[0, 1] - q2[0, 1]),
+                                   abs(q1[0, 0] - q2[0, 0]), np.abs(t1 - t2).max() / 1000.0])
+    assert worst[0] < 1e-8 and worst[1] < 1e-10 and worst[2] < 1e-10 and worst[3] < 1e-8
+    assert (st1 == fm.STATUS_FACE).all()                 # the path is plastic to the end
+
+
+def test_rotating_principal_axes_at_fixed_p_and_r_flow_only_with_fabric():
+    # Acceptance 3: R/P below tier 1's sin φ: tier 1 stays rigid (elastic, no plastic strain)
+    # while tier 2 with B > 0 yields where the stress axes meet the weak planes of the fabric.
+    params = model_params(lam=1000.0, nu=0.2, a2_deg=15.0)
+    bulk, shear = params.array(2)[:2]
+    c_inv = np.linalg.inv([[bulk + shear, bulk - shear, 0], [bulk - shear, bulk + shear, 0],
+                           [0, 0, shear]])
+    r = 0.9 * np.sin(np.radians(25.0))
+    angles = np.linspace(0.0, np.pi, 181)
+    de = np.diff(np.array([stress_at(1.0, r, a) for a in angles]), axis=0) @ c_inv.T
+    runs = {}
+    for tier, state in ((1, [0.0, 0.81]), (2, [0.0, 0.81, 0.955, 0.3, 0.0])):
+        s, q = stress_at(1.0, r, 0.0)[None, :], np.array([state])
+        statuses = []
+        for k in range(len(de)):
+            s, q, _, st = update(params, s, q, de[k:k + 1], np.zeros(1), tier=tier)
+            statuses.append(st[0])
+        runs[tier] = (s[0], q[0], np.array(statuses))
+    s1, q1, st1 = runs[1]
+    assert (st1 == fm.STATUS_ELASTIC).all() and q1[0] == 0.0
+    assert s1 == pytest.approx(stress_at(1.0, r, np.pi), abs=1e-12)   # followed exactly
+    s2, q2, st2 = runs[2]
+    assert (st2 == fm.STATUS_FACE).sum() > 10 and q2[0] > 1e-4        # tier 2 flows
+    assert np.abs(s2 - stress_at(1.0, r, np.pi)).max() > 1e-2         # and leaves the path

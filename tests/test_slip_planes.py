@@ -34,8 +34,9 @@ def test_isotropic_fabric_gives_tier1_cone_and_tier1_dilatancy(tier2_prm, p, rat
                                                                dphi, dpsi, phi_star):
     # a1 = a2 = b1 = b2 = 0, a0 = φ*, b0 = 0: every plane has tier 1's φ(c), ψ(c); f must be
     # (R - sin φ P)/cos φ and the flow coaxial with sin ψ = tr/(ε1 - ε2) (seed eq. 1.2).
-    tier1 = dict(TIER1, phi_star_deg=phi_star, dphi_dc_deg=dphi, dpsi_dc_deg=dpsi)
-    prm = tier2_prm(tier1=tier1, a0_deg=phi_star)
+    tier1 = dict(TIER1, phi_star_deg=phi_star, dphi_dc_deg=dphi, dpsi_dc_deg=dpsi,
+                 phi_min_deg=0.1)
+    prm = tier2_prm(nu=0.0, tier1=tier1, a0_deg=phi_star)    # ν = 0: any φ* passes tier 1's check
     r = ratio * p
     s = stress_at(p, r, alpha)
     phi = np.clip(prm[I_A0] + prm[I_DPHI] * (c - C_STAR), prm[I_PHILO], prm[I_PHIHI])

@@ -45,8 +45,8 @@ fabric, when it acts, and an arc maximum sitting on its arc's end, τ = 0.)
 converge outside the apex region, a non-finite result. The point returns its input stress
 and state and the elastic tangent; nothing non-finite is produced.
 
-**Parameter array** (angles in radians; indices 0-7 are the regularization and tier 1
-parts, shared with tier 1's layout)::
+**Parameter array** (:meth:`contfab.params.Params.array` (2): the ``[regularization]``,
+``[tier1]`` and ``[tier2]`` parts; angles in radians; 0-7 are tier 1's layout)::
 
     [0] K  [1] G  [2] φ* (tier 1's; unused here: a0 plays its role)  [3] φ'  [4] ψ'  [5] c*
     [6] φ_min  [7] φ_max
@@ -58,34 +58,26 @@ parts, shared with tier 1's layout)::
 """
 from __future__ import annotations
 
-import math
 from collections import namedtuple
-from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, prange
 
-from contfab.fabric import A_EDGE
-from contfab.models.fabric_law import (LAW_BALANCE, LAW_RELAXATION, N_WORK, fabric_step,
-                                       rotate_fabric)
+from contfab.models.cone import (STATUS_APEX, STATUS_ELASTIC, STATUS_FACE, STATUS_FAILED,
+                                 _finish, _inputs_finite)
+from contfab.models.fabric_law import N_WORK, fabric_step, rotate_fabric
 from contfab.models.slip_planes import (N_P, N_PL, N_YF, PL_DT, PL_TP, PL_TS, YF_F, YF_FP, YF_FS,
                                         YF_N, YF_NP, YF_NS, YF_TR, YF_TRP, YF_TRS, fabric_terms,
                                         fabric_terms_jacobian, yield_and_flow, yield_value)
-from contfab.tensors import rotate
-from dem.conventions import admissibility_margin
+from contfab.tensors import isotropic_stiffness_into, rotate
 
-STATUS_ELASTIC = 0
-STATUS_FACE = 1
-STATUS_APEX = 2
 STATUS_PROJECTED = 3
-"""Plastic (face or apex) and the fabric had to be projected onto the admissible set."""
-STATUS_FAILED = -1
+"""Plastic (face or apex) and the fabric had to be projected onto the admissible set
+(statuses 0, 1, 2, -1 as tiers 0/1: :mod:`contfab.models.cone`)."""
 
 N_PRM = 25
 N_X = 8
 """Unknowns of the local solve: σ (3), Δγ, c, A, Bc, Bs."""
-SERIAL_BELOW = 512
-"""Fewer points than this run on the calling thread (:func:`update_points_serial`)."""
 YIELD_TOL = 1e-10
 """Elastic check: f(σ_tr) <= YIELD_TOL · |σ_tr| is elastic."""
 NEWTON_MAXIT = 40
@@ -409,32 +401,11 @@ def _face_return(c_n, qn, prm, sc, s_ref):
 # --------------------------------------------------------------------------- one point
 
 @njit(cache=True, error_model="numpy")
-def isotropic_stiffness_into(bulk, shear, out):
-    """The regularization's Voigt stiffness C into ``out`` (interim copy until main has it)."""
-    out[:, :] = 0.0
-    out[0, 0] = bulk + shear
-    out[1, 1] = bulk + shear
-    out[0, 1] = bulk - shear
-    out[1, 0] = bulk - shear
-    out[2, 2] = shear
-
-
-@njit(cache=True, error_model="numpy")
 def _elastic_strain(sxx, syy, sxy, bulk, shear):
     """C⁻¹σ (Voigt, engineering shear): tr = (σxx+σyy)/(2K), deviator /(2G), γ = σxy/G."""
     vol = 0.25 * (sxx + syy) / bulk
     dev = 0.25 * (sxx - syy) / shear
     return vol + dev, vol - dev, sxy / shear
-
-
-@njit(cache=True, error_model="numpy")
-def _inputs_finite(stress_n, state_n, dstrain, dspin, i):
-    ok = np.isfinite(dspin[i])
-    for j in range(3):
-        ok = ok and np.isfinite(stress_n[i, j]) and np.isfinite(dstrain[i, j])
-    for j in range(state_n.shape[1]):
-        ok = ok and np.isfinite(state_n[i, j])
-    return ok
 
 
 @njit(cache=True, error_model="numpy")
@@ -542,23 +513,6 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
 
 
 @njit(cache=True, error_model="numpy")
-def _finish(stress_n, state_n, stress, state, tangent, status, i, bulk, shear):
-    """The no-NaN rule: a failed or non-finite point returns its inputs (status -1)."""
-    ok = status[i] != STATUS_FAILED
-    for j in range(3):
-        ok = ok and np.isfinite(stress[i, j])
-        for k in range(3):
-            ok = ok and np.isfinite(tangent[i, k, j])
-    for j in range(state.shape[1]):
-        ok = ok and np.isfinite(state[i, j])
-    if not ok:
-        status[i] = STATUS_FAILED
-        stress[i, :] = stress_n[i, :]
-        state[i, :] = state_n[i, :]
-        isotropic_stiffness_into(bulk, shear, tangent[i])
-
-
-@njit(cache=True, error_model="numpy")
 def _update_range(lo, hi, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status):
     """Update points lo..hi-1 (scratch allocated once per range, never per point)."""
     sc = _scratch()
@@ -579,92 +533,3 @@ def update_points(stress_n, state_n, dstrain, dspin, prm, stress, state, tangent
     for chunk in prange(n_chunks):
         _update_range(chunk * n // n_chunks, (chunk + 1) * n // n_chunks, stress_n, state_n,
                       dstrain, dspin, prm, stress, state, tangent, status)
-
-
-@njit(cache=True, error_model="numpy")
-def update_points_serial(stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status):
-    """:func:`update_points` on the calling thread: for few points (a thread launch costs
-    ~0.1 ms on 2 cores, far more under load, against ~5 µs per point)."""
-    _update_range(0, stress_n.shape[0], stress_n, state_n, dstrain, dspin, prm, stress, state,
-                  tangent, status)
-
-
-# --------------------------------------------------------------------------- parameters (interim)
-
-@dataclass(frozen=True)
-class Tier2Section:
-    """The ``[tier2]`` parameters (angles in degrees; the kernel array is in radians).
-
-    a0..a3, b0..b3: seed eq. 1.8 for φ(θ) and ψ(θ) (a1, b1 per unit A; a2, b2 per unit B);
-    the c-dependence φ'(c - c*), ψ'(c - c*) and the clamps come from tier 1's section.
-    """
-
-    a0_deg: float
-    a1_deg: float = 0.0
-    a2_deg: float = 0.0
-    a3_deg: float = 0.0
-    b0_deg: float = 0.0
-    b1_deg: float = 0.0
-    b2_deg: float = 0.0
-    b3_deg: float = 0.0
-    sharpness: float = 50.0
-    n_search: int = 8
-    fabric_law: int = LAW_BALANCE
-    kappa_a: float = 0.394
-    k_c: float = 1.776
-    k_o: float = 1.0
-    z_crit: float = 3.0
-    b_ratio_crit: float = 0.25
-    relax_rate: float = 10.0
-
-    def __post_init__(self):
-        if not 0.0 < self.a0_deg < 90.0:
-            raise ValueError(f"[tier2] a0_deg = {self.a0_deg:g} is outside (0, 90) deg")
-        if not self.sharpness > 0.0:
-            raise ValueError(f"[tier2] sharpness = {self.sharpness:g} is outside (0, inf)")
-        if self.fabric_law not in (LAW_BALANCE, LAW_RELAXATION):
-            raise ValueError(f"[tier2] fabric_law = {self.fabric_law!r} is not 0 (balance) or "
-                             f"1 (relaxation)")
-        a_c = self.z_crit / math.pi
-        if not (0.0 < a_c and admissibility_margin(a_c, self.b_ratio_crit * a_c) > 0.0
-                and 0.0 <= self.b_ratio_crit < 1.0):
-            raise ValueError(f"[tier2] z_crit = {self.z_crit:g}, b_ratio_crit = "
-                             f"{self.b_ratio_crit:g} is not strictly admissible (0 < z_crit, "
-                             f"0 <= b_ratio_crit < 1, z_crit/6 + (sqrt(3)/4) b z_crit/pi < 1; "
-                             f"largest z_crit at b = 0: 6, at B = A: {math.pi * A_EDGE:.3f})")
-
-    def array(self) -> tuple[float, ...]:
-        r = math.radians
-        return (r(self.a0_deg), r(self.a1_deg), r(self.a2_deg), r(self.a3_deg),
-                r(self.b0_deg), r(self.b1_deg), r(self.b2_deg), r(self.b3_deg),
-                self.sharpness, float(self.n_search), float(self.fabric_law), self.kappa_a,
-                self.k_c, self.k_o, self.z_crit / math.pi, self.b_ratio_crit, self.relax_rate)
-
-
-def tier2_array(section: Tier2Section, *, bulk: float, shear: float, phi_star_deg: float,
-                dphi_dc_deg: float, dpsi_dc_deg: float, c_star: float,
-                phi_min_deg: float = 1.0, phi_max_deg: float = 60.0) -> np.ndarray:
-    """The kernel array (module doc) from the regularization, tier-1 and tier-2 values."""
-    r = math.radians
-    head = (bulk, shear, r(phi_star_deg), r(dphi_dc_deg), r(dpsi_dc_deg), c_star,
-            r(phi_min_deg), r(phi_max_deg))
-    prm = np.array(head + section.array(), dtype=np.float64)
-    assert prm.size == N_PRM
-    return prm
-
-
-def update(stress_n, state_n, dstrain, dspin, prm):
-    """Allocate outputs and run :func:`update_points` (interim, until tiers.update has tier 2)."""
-    stress_n = np.ascontiguousarray(stress_n, dtype=np.float64)
-    n = stress_n.shape[0]
-    state_n = np.ascontiguousarray(state_n, dtype=np.float64)
-    dstrain = np.ascontiguousarray(dstrain, dtype=np.float64)
-    dspin = np.ascontiguousarray(dspin, dtype=np.float64)
-    stress = np.empty((n, 3))
-    state = np.empty((n, 5))
-    tangent = np.empty((n, 3, 3))
-    status = np.empty(n, dtype=np.int8)
-    kernel = update_points if n >= SERIAL_BELOW else update_points_serial
-    kernel(stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status)
-    return stress, state, tangent, status
-

@@ -200,7 +200,7 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
     hts0 = -2.0 * g * (sn_s0 - 0.5) + t_t * sn_s0 + 2.0 * t * ta_s0
     hts1 = -2.0 * g * (sn_s1 - 0.5) + t_t * sn_s1 + 2.0 * t * ta_s1
     hts2 = -2.0 * g * sn_s2 + t_t * sn_s2 + 2.0 * t * ta_s2
-    if h_tt < 0.0:
+    if h_tt < -1e-12 * (abs(m) + r):     # an interior maximum, resolvable against |σ|
         inv = -1.0 / h_tt
         # The plane's Newton step, kept inside the arc (u + 2δθ in [0, π] or [-π, 0]).
         lo = 0.0 if g < 0.0 else -np.pi
@@ -213,7 +213,7 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
     pl[k, PL_HS] = g * ta_s0 + t * sn_s0 + hts0 * dt
     pl[k, PL_HS + 1] = g * ta_s1 + t * sn_s1 + hts1 * dt
     pl[k, PL_HS + 2] = g * ta_s2 + t * sn_s2 + hts2 * dt
-    # ∂θ/∂σ = -h_θσ / h_θθ (0 where the maximum is not interior).
+    # ∂θ/∂σ = -h_θσ / h_θθ (0 where the maximum is not interior, or R ~ 1e-12 |σ|).
     pl[k, PL_TS] = inv * hts0
     pl[k, PL_TS + 1] = inv * hts1
     pl[k, PL_TS + 2] = inv * hts2
