@@ -204,3 +204,35 @@ def test_fabric_stays_admissible_and_relaxation_never_projects(seed, law, scale)
     assert admissibility_margin(hist[:, 0], np.hypot(hist[:, 1], hist[:, 2])).min() >= 0.0
     if law == fl.LAW_RELAXATION:
         assert projected == 0
+
+
+@settings(max_examples=60, deadline=None)
+@given(bfrac=st.floats(0.9, 1.0), tp=st.floats(0, np.pi), de=st.lists(st.floats(-1, 1),
+       min_size=3, max_size=3), size=st.floats(-3, -1), z=st.floats(2.0, 3.2))
+def test_fabric_step_derivatives_hold_through_the_projection(bfrac, tp, de, size, z):
+    # Mean-field coefficients drive the fabric out of K near its bounds; the returned
+    # derivatives are those of the projected result (the local Newton relies on them).
+    a = z / np.pi
+    b = bfrac * min(a, (1 - np.pi / 6 * a) / (np.sqrt(3) / 4))
+    q0 = (a, b * np.cos(2 * tp), b * np.sin(2 * tp))
+    m, r = 0.5 * (de[0] + de[1]), np.hypot(0.5 * (de[0] - de[1]), 0.5 * de[2])
+    if np.abs(de).max() < 1e-3 or abs(abs(m) - r) < 1e-3:
+        return                           # Δεp = 0 or |m| = r: see the test above
+    de = 10.0 ** size * np.array(de)
+    args = (fl.LAW_BALANCE, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0)
+
+    def step(d, c):
+        q, dq = np.empty(3), np.empty((4, 3))
+        moved = fl.fabric_step(*q0, *d, c, *args, q, dq, np.empty(fl.N_WORK))
+        return q, dq, moved
+
+    q, dq, moved = step(de, 0.8)
+    h = 1e-6 * 10.0 ** size
+    for v in range(4):
+        e = np.zeros(4)
+        e[v] = h if v < 3 else 1e-6
+        qp, _, mp = step(de + e[:3], 0.8 + e[3])
+        qm, _, mm = step(de - e[:3], 0.8 - e[3])
+        if mp != moved or mm != moved:
+            return                       # a switch between faces inside the difference
+        assert dq[v] == pytest.approx((qp - qm) / (2 * e[v]), rel=1e-4, abs=1e-5)

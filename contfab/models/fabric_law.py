@@ -309,9 +309,9 @@ def fabric_step(a, bc, bs, dexx, deyy, dgxy, c, law, kappa_a, k_c, k_o, a_crit, 
                 q, dq, ws):
     """The fabric after the plastic increment (spin already applied).
 
-    ``q`` (3,) ← (A, Bc, Bs); ``dq`` (4, 3) ← ∂q/∂(Δεxx, Δεyy, Δγxy, c) of the law (the
-    projection, when it acts, is not differentiated); ``ws`` (N_WORK,) scratch. Returns
-    True when the result had to be projected onto K (module doc).
+    ``q`` (3,) ← (A, Bc, Bs); ``dq`` (4, 3) ← ∂q/∂(Δεxx, Δεyy, Δγxy, c), through the
+    projection when it acts; ``ws`` (N_WORK,) scratch. Returns True when the result had to
+    be projected onto K (module doc).
     """
     if law == LAW_RELAXATION:
         relaxation_step(a, bc, bs, dexx, deyy, dgxy, a_crit, b_ratio, rate, q, dq)
@@ -338,8 +338,51 @@ def fabric_step(a, bc, bs, dexx, deyy, dgxy, c, law, kappa_a, k_c, k_o, a_crit, 
                 dq[v, i] = xi[i, 0] * tmp[0] + xi[i, 1] * tmp[1] + xi[i, 2] * tmp[2]
     if admissibility_margin(q[0], np.hypot(q[1], q[2])) >= 0.0:
         return False
-    q[0], q[1], q[2], moved = project_admissible(q[0], q[1], q[2])
+    a1, bc1, bs1 = q[0], q[1], q[2]
+    q[0], q[1], q[2], moved = project_admissible(a1, bc1, bs1)
+    _chain_projection(a1, bc1, bs1, q, dq)
     return moved
+
+
+@njit(cache=True, error_model="numpy")
+def _chain_projection(a, bc, bs, q, dq):
+    """dq ← (∂ projection / ∂(A, Bc, Bs)) dq for the projection of (a, bc, bs) onto q.
+
+    The projection keeps θp and moves (A, B) to the closest point of the admissible triangle
+    (:func:`contfab.fabric.project_admissible`): on an edge with unit direction t it is
+    t tᵀ in (A, B) (0 at a vertex), and (Bc, Bs) = B' e with e = (Bc, Bs)/B, so
+    d(Bc, Bs) = dB' e + (B'/B)(I - e eᵀ) d(Bc, Bs). This keeps the local Newton's Jacobian
+    exact where the fabric law runs along a bound.
+    """
+    b = np.hypot(bc, bs)
+    pa = q[0]
+    pb = np.hypot(q[1], q[2])
+    on_ba = abs(pa - pb) <= 1e-12 * max(pa, 1e-300)
+    on_steric = abs(np.pi / 6.0 * pa + SQRT3_4 * pb - 1.0) <= 1e-12
+    if on_ba and not on_steric:
+        ta, tb = np.sqrt(0.5), np.sqrt(0.5)
+    elif on_steric and not on_ba:
+        norm = np.hypot(np.pi / 6.0, SQRT3_4)
+        ta, tb = SQRT3_4 / norm, -np.pi / 6.0 / norm
+    elif pb == 0.0 and pa > 0.0 and not on_steric:
+        ta, tb = 1.0, 0.0                      # the edge B = 0 (A moves, B stays 0)
+    else:
+        ta, tb = 0.0, 0.0                      # a vertex: (A, B) fixed
+    if b > 0.0:
+        ec = bc / b
+        es = bs / b
+        ratio = pb / b
+    else:
+        ec, es, ratio = 1.0, 0.0, 0.0
+    for v in range(dq.shape[0]):
+        da = dq[v, 0]
+        db = ec * dq[v, 1] + es * dq[v, 2]            # radial part of d(Bc, Bs)
+        dt = -es * dq[v, 1] + ec * dq[v, 2]           # tangential part (turns θp)
+        s = ta * da + tb * db                          # along the edge
+        dq[v, 0] = ta * s
+        dbp = tb * s
+        dq[v, 1] = dbp * ec - ratio * dt * es
+        dq[v, 2] = dbp * es + ratio * dt * ec
 
 
 @njit(cache=True, error_model="numpy")

@@ -38,8 +38,8 @@ order); every returned state lies on its own yield surface, f(σ_{n+1}; q_{n+1},
 
 **Consistent tangent** ∂σ_{n+1}/∂Δε: with the converged Jacobian J of the residuals r(x; Δε),
 dx/dΔε = J⁻¹ [C; 0] (the only Δε-dependence is σ_tr), fabric coupling included; tested
-against central differences of the whole update. (Not differentiated: a projection of the
-fabric, when it acts, and an arc maximum sitting on its arc's end, τ = 0.)
+against central differences of the whole update (through the fabric's projection when it
+acts; not differentiated: an arc maximum sitting on its arc's end, τ = 0).
 
 **Failures** (status -1): non-finite input, c outside (0, 1), a face solve that does not
 converge outside the apex region, a non-finite result. The point returns its input stress
@@ -450,7 +450,9 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
     spsi_iso, spsi_min = _dilatancy_range(c_apex, q0, bc, bs, prm)
     face = False
     projected = False
-    apex = shear * p_tr + bulk * spsi_iso * r_tr <= 0.0
+    # (and a plastic trial at a stress too small to resolve — |σ_tr| < 1e-200 (K+G), where
+    # Newton's arithmetic underflows — is σ = 0 to that accuracy)
+    apex = shear * p_tr + bulk * spsi_iso * r_tr <= 0.0 or s_ref < 1e-200 * (bulk + shear)
     if not apex:
         # Near the surface (the common case in a converging global iteration) one cutting-
         # plane step from σ_tr is the better start; otherwise, or if that solve fails,
