@@ -46,7 +46,7 @@ from numba import njit, prange
 from dem import neighbours
 from dem.contact_law import ContactLaw, contact_response
 from dem.periodic_cell import cayley_step
-from dem.servo import servo_rate
+from dem.servo import L_MAX_FACTOR, servo_rate, time_constant
 from dem.state import D_DAMP, D_FRIC, D_ROLL, EXX, EXY, EYY, TAU, TIME, WORK, State
 
 CHUNK = 256
@@ -88,6 +88,22 @@ class Dynamics:
     gdot_ref: float
     tau_servo: float
     l_max: float
+
+
+def dynamics(law: ContactLaw, m_min: float, inertial: float, fraction: float = DT_FRACTION,
+             skin: float = 0.2, l_max: float | None = None) -> Dynamics:
+    """Dynamics for a run at inertial number ``inertial`` (γ̇_ref = I in DEM units).
+
+    The servo time constant follows κ (:func:`dem.servo.time_constant`) and its rate cap
+    is L_MAX_FACTOR γ̇_ref unless ``l_max`` is given (preparation caps at its own rate).
+    """
+    if not (math.isfinite(inertial) and inertial > 0):
+        raise ValueError(f"inertial number I = {inertial} out of range; accepted (0, inf) "
+                         f"(quasi-static: I <= 1e-3)")
+    if not (math.isfinite(skin) and skin > 0):
+        raise ValueError(f"Verlet skin = {skin} out of range; accepted (0, inf) (units of d)")
+    return Dynamics(law, time_step(law, m_min, fraction), skin, inertial,
+                    time_constant(law.kn), l_max if l_max is not None else L_MAX_FACTOR * inertial)
 
 
 @dataclass

@@ -130,7 +130,7 @@ def compress_to_pressure(state: State, dyn: Dynamics, p0: float = 1.0, max_steps
     target = np.array([-p0, -p0, 0.0])
     ctl = Control(np.zeros(4), np.array([True, True, False, False]), target, target)
     _run_until_relaxed(state, dyn, ctl, p0, max_steps, info, progress)
-    return state, info
+    return reset_accumulators(state), info
 
 
 def compress_to_fraction(state: State, dyn: Dynamics, target_c: float, rate: float,
@@ -153,7 +153,7 @@ def compress_to_fraction(state: State, dyn: Dynamics, target_c: float, rate: flo
         info.steps += nsteps
     state.L[:] = 0.0
     _run_until_relaxed(state, dyn, Control.fixed(), None, max_steps, info, progress)
-    return state, info
+    return reset_accumulators(state), info
 
 
 def switch_friction(dyn: Dynamics, mu: float) -> Dynamics:

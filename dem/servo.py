@@ -45,7 +45,7 @@ import math
 
 from numba import njit
 
-TAU_CONTACTS = 2.0
+TAU_CONTACTS = 0.5
 """Servo time constant in binary contact times of a mean disc."""
 
 L_MAX_FACTOR = 10.0

@@ -1,18 +1,22 @@
 """Shared DEM fixtures: small prepared packings, made once per test session."""
+import numba
 import numpy as np
 import pytest
 
 from dem.contact_law import ContactLaw
-from dem.integrator import Dynamics, time_step
+from dem.integrator import dynamics
 from dem.particles import parse_radii, sample_radii
 from dem.prepare import compress_to_pressure, random_gas
-from dem.servo import time_constant
 
 
-def make_dynamics(state, kappa=1e3, mu=0.5, e=0.5, fraction=0.1, gdot=1e-3, l_max=1e-2):
+# The machine is shared: an OpenMP barrier with a descheduled second thread costs
+# milliseconds per step. Tests run single-threaded; the parallel test sets its own count.
+numba.set_num_threads(1)
+
+
+def make_dynamics(state, kappa=1e3, mu=0.5, e=0.5, fraction=0.1, gdot=1e-3, l_max=None):
     law = ContactLaw(kn=kappa, e=e, mu=mu)
-    return Dynamics(law, time_step(law, state.mass.min(), fraction), 0.2, gdot,
-                    time_constant(kappa), l_max)
+    return dynamics(law, state.mass.min(), gdot, fraction, l_max=l_max)
 
 
 def prepared(n, mu_prep, seed=0, kappa=1e3):
