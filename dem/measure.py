@@ -126,9 +126,11 @@ def elastic_energy(state: State, law: ContactLaw, contacts: Contacts | None = No
                  + 0.5 * law.kt * np.sum(reff**2 * c.xi[:, 1] ** 2))
 
 
-def kinetic_energy(state: State) -> float:
+def kinetic_energy(state: State, exclude: np.ndarray | None = None) -> float:
+    """Σ ½ m v'² + ½ I ω² (over the discs not flagged in ``exclude``)."""
     inertia = 1.0 / state.inv_inertia
-    return float(0.5 * np.sum(state.mass[:, None] * state.v**2) + 0.5 * np.sum(inertia * state.omega**2))
+    e = 0.5 * np.sum(state.mass[:, None] * state.v**2, axis=1) + 0.5 * inertia * state.omega**2
+    return float(e.sum() if exclude is None else e[~exclude].sum())
 
 
 def energies(state: State, law: ContactLaw, contacts: Contacts | None = None) -> dict:

@@ -7,7 +7,9 @@
    (:mod:`dem.servo`, strain rate capped at ``rate``) with the preparation friction
    μ_prep (μ_prep = 0 gives dense, μ_prep = μ loose samples), until :func:`relaxed`:
        |P/P0 - 1| < P_TOL, unbalanced force ratio < ``force_tol`` and
-       kinetic / elastic energy < ``kinetic_tol``,
+       kinetic / elastic energy < ``kinetic_tol`` (kinetic energy of the discs that are
+       not rattlers: a rattler may drift or spin freely in its cage forever),
+   with σxy servo-controlled to 0 as well,
    then the friction is switched to the test value (tangential histories kept).
 3. :func:`compress_to_fraction` (seed 002 check): compression at a prescribed strain
    rate to a target packing fraction, then relaxation at fixed volume. Targets above
@@ -88,11 +90,16 @@ def check_configuration(radius: np.ndarray, positions: np.ndarray, h: np.ndarray
                             f"overlap (distance >= sum of radii)")
 
 
+def _rattlers(state: State, law: ContactLaw) -> np.ndarray:
+    c = Contacts(state)
+    return rattler_mask(state.n, c.i, c.j, 3 if law.mu == 0 else 2)
+
+
 def unbalanced_force_ratio(state: State, law: ContactLaw) -> float:
     c = Contacts(state)
     if c.count == 0:
         return math.inf
-    ratt = rattler_mask(state.n, c.i, c.j, 3 if law.mu == 0 else 2)
+    ratt = _rattlers(state, law)
     fmag = np.hypot(state.force[:, 0], state.force[:, 1])[~ratt]
     return float(fmag.mean() / max(c.fn.mean(), 1e-300)) if fmag.size else math.inf
 
@@ -104,7 +111,7 @@ def relaxed(state: State, law: ContactLaw, p_target: float | None, info: PrepInf
     e_el = elastic_energy(state, law)
     info.P, info.c = float(p), state.packing_fraction
     info.unbalanced = unbalanced_force_ratio(state, law)
-    info.kinetic_ratio = kinetic_energy(state) / e_el if e_el > 0 else math.inf
+    info.kinetic_ratio = kinetic_energy(state, _rattlers(state, law)) / e_el if e_el > 0 else math.inf
     ok_p = p_target is None or abs(p / p_target - 1.0) < P_TOL
     info.relaxed = bool(ok_p and info.unbalanced < force_tol and info.kinetic_ratio < kinetic_tol)
     return info.relaxed
@@ -128,7 +135,7 @@ def compress_to_pressure(state: State, dyn: Dynamics, p0: float = 1.0, max_steps
     neighbours.rebuild(state, dyn.skin)
     evaluate_forces(state, dyn)
     target = np.array([-p0, -p0, 0.0])
-    ctl = Control(np.zeros(4), np.array([True, True, False, False]), target, target)
+    ctl = Control(np.zeros(4), np.array([True, True, True, False]), target, target)
     _run_until_relaxed(state, dyn, ctl, p0, max_steps, info, progress)
     return reset_accumulators(state), info
 
