@@ -105,9 +105,32 @@ def _run_dem(args) -> None:
         print(f"{what:>14}: {f}")
 
 
+# --------------------------------------------------------------------------- bench
+
+BENCHES = {"dem": "contfab.bench.dem"}
+
+
+def _add_bench(p: argparse.ArgumentParser) -> None:
+    p.add_argument("name", choices=sorted(BENCHES), help="which benchmark")
+    p.add_argument("--json", action="store_true", help="print the figures as one JSON object")
+    p.add_argument("--repeats", type=int, default=3, help="timings per figure (median)")
+
+
+def _run_bench(args) -> None:
+    import importlib
+
+    from contfab.bench import print_figures
+
+    if args.repeats < 1:
+        raise ValueError(f"--repeats {args.repeats} out of range; accepted >= 1")
+    figures = importlib.import_module(BENCHES[args.name]).run(args)
+    print_figures(f"contfab bench {args.name}", figures, args.json)
+
+
 COMMANDS = {
     "paths": (_add_paths, _run_paths, "list the standard loading paths, or show one"),
     "dem": (_add_dem, _run_dem, "the 2D disc-DEM RVE: prepare samples, run loading paths"),
+    "bench": (_add_bench, _run_bench, "speed and memory benchmarks"),
 }
 
 

@@ -150,7 +150,7 @@ def run_job(path_name: str, settings: Settings, out_dir: str | FsPath, resume: s
 
         def on_row(r, s, bar=bar, ck=ck, done=done):
             if bar is not None:
-                now = r.rows[-1]["tau"] - r.rows[0]["tau"]
+                now = min(r.rows[-1]["tau"] - r.rows[0]["tau"], bar.total)
                 bar.update(now - done[0])
                 done[0] = now
             if settings.checkpoint_every and len(r.rows) % settings.checkpoint_every == 0:

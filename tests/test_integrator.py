@@ -20,21 +20,27 @@ def test_frictionless_undamped_energy_drift_below_1e6_over_1e5_steps(packing_fri
     assert abs(energies(st, dyn.law)["E_total"] / e0 - 1.0) < 1e-6
 
 
-def test_energy_balance_closes_under_biaxial_loading(packing_frictional):
-    # friction, damping, servo and cell deformation all active; the books must close to
-    # 3e-3 of the external work (measured 1.3e-3 at this dt; the error is O(dt): slip
-    # and damping work are evaluated at the end-of-step geometry)
-    st = packing_frictional.copy()
+def _balance_error(packing, fraction):
+    st = packing.copy()
     st.acc[:] = 0.0
-    dyn = make_dynamics(st, mu=0.5, e=0.5, gdot=1e-2)
+    dyn = make_dynamics(st, mu=0.5, e=0.5, gdot=1e-2, fraction=fraction)
     evaluate_forces(st, dyn)
     e0 = energies(st, dyn.law)
     ctl = Control(np.array([0.0, -1e-2, 0.0, 0.0]), np.array([True, False, False, False]),
                   np.array([-1.0, -1.0, 0.0]), np.array([-1.0, -1.0, 0.0]))
-    advance(st, dyn, 20_000, ctl)
+    advance(st, dyn, int(round(2000 / fraction)), ctl)  # 20% axial strain
     e1 = energies(st, dyn.law)
     assert e1["W_external"] > 0 and e1["D_friction"] > 0 and e1["D_damping"] > 0
-    assert abs(e1["E_total"] - e0["E_total"]) < 3e-3 * e1["W_external"]
+    return abs(e1["E_total"] - e0["E_total"]) / e1["W_external"]
+
+
+def test_energy_balance_closes_under_biaxial_loading(packing_frictional):
+    # friction, damping, servo and cell deformation all active. The books close to a few
+    # 1e-3 of the external work at the default dt and the error is O(dt) (slip and damping
+    # work are evaluated with the end-of-step contact geometry): halving dt halves it
+    coarse = _balance_error(packing_frictional, 0.1)
+    fine = _balance_error(packing_frictional, 0.05)
+    assert coarse < 5e-3 and fine < 0.65 * coarse
 
 
 def test_kernel_stress_is_the_love_weber_stress(packing_frictional):
