@@ -59,6 +59,17 @@ def wrap(s, image, pair_ij, pair_shift, n_pairs):
 
 
 @njit(cache=True)
+def _neighbour_bin(b, offset, nb):
+    """(bin, image shift) of the bin ``offset`` away from ``b`` among ``nb`` periodic bins."""
+    c = b + offset
+    if c < 0:
+        return c + nb, -1
+    if c >= nb:
+        return c - nb, 1
+    return c, 0
+
+
+@njit(cache=True)
 def build_pairs(s, radius, h, skin, n1, n2, old_ij, old_shift, old_hist, old_row_ptr,
                 new_ij, new_shift, new_hist, new_row_ptr):
     """List all pairs (see module doc) into the ``new_*`` arrays; return the count.
@@ -91,23 +102,9 @@ def build_pairs(s, radius, h, skin, n1, n2, old_ij, old_shift, old_hist, old_row
         b1 = bin_of[i] % n1
         b2 = bin_of[i] // n1
         for o2 in range(-1, 2):
-            c2 = b2 + o2
-            sh2 = 0
-            if c2 < 0:
-                c2 += n2
-                sh2 = -1
-            elif c2 >= n2:
-                c2 -= n2
-                sh2 = 1
+            c2, sh2 = _neighbour_bin(b2, o2, n2)
             for o1 in range(-1, 2):
-                c1 = b1 + o1
-                sh1 = 0
-                if c1 < 0:
-                    c1 += n1
-                    sh1 = -1
-                elif c1 >= n1:
-                    c1 -= n1
-                    sh1 = 1
+                c1, sh1 = _neighbour_bin(b1, o1, n1)
                 b = c1 + n1 * c2
                 for k in range(count[b], count[b + 1]):
                     j = members[k]
