@@ -9,7 +9,9 @@ Hookean-history, serial) runs it at about 1.4e7 particle-steps/s on one core of 
 machine class.
 
 Figures: particle-steps per second with one thread and with all numba threads (median
-of ``--repeats`` timings of ``steps`` steps each), state bytes per particle and peak
+of ``--repeats`` timings of ``steps`` steps each), per CPU-second of the one-thread run
+(closer to the speed of an idle core when the machine is shared; the 1-minute load
+average is reported beside it), state bytes per particle and peak
 traced (numpy) memory per particle during the run, and the process's peak RSS. The
 prepared sample is cached under ``~/.cache/contfab`` (keyed on the system definition).
 """
@@ -19,6 +21,8 @@ import hashlib
 import json
 import math
 import os
+import statistics
+import time
 import tracemalloc
 from pathlib import Path
 
@@ -79,7 +83,7 @@ def run(args) -> dict:
     steps = 2000
     n = state0.n
 
-    def timed(threads: int) -> float:
+    def timed(threads: int, clock=None) -> float:
         numba.set_num_threads(threads)
         runner = PathRunner(load_path(system["path"]), dyn, dyn.gdot_ref)
         st = state0.copy()
@@ -87,10 +91,19 @@ def run(args) -> dict:
         from dem.integrator import Control
         ctl = Control(stage.rate_vector * dyn.gdot_ref, stage.stress_controlled,
                       stage.stress_target(st.stress, 0.0), stage.stress_target(st.stress, 0.0))
-        return median_seconds(lambda: advance(st, dyn, steps, ctl), repeats=args.repeats)
+        if clock is None:
+            return median_seconds(lambda: advance(st, dyn, steps, ctl), repeats=args.repeats)
+        advance(st, dyn, steps, ctl)
+        times = []
+        for _ in range(args.repeats):
+            t0 = clock()
+            advance(st, dyn, steps, ctl)
+            times.append(clock() - t0)
+        return statistics.median(times)
 
     all_threads = numba.config.NUMBA_NUM_THREADS
     t1 = timed(1)
+    t1_cpu = timed(1, time.process_time)
     tracemalloc.start()
     tn = timed(all_threads)
     _, peak = tracemalloc.get_traced_memory()
@@ -99,7 +112,9 @@ def run(args) -> dict:
     rate1 = n * steps / t1
     return {"particles": n, "steps_per_timing": steps,
             "particle_steps_per_s_1_thread": rate1,
+            "particle_steps_per_cpu_s_1_thread": n * steps / t1_cpu,
             "particle_steps_per_s_all_threads": n * steps / tn,
+            "load_average_1min": os.getloadavg()[0],
             "threads": all_threads,
             "ratio_to_lammps_1_core": rate1 / LAMMPS_REFERENCE,
             "state_bytes_per_particle": state0.nbytes() / n,
