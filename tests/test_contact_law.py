@@ -123,3 +123,25 @@ def test_bad_contact_parameters_are_refused_with_range(kw, word):
 def test_damping_ratio_inverts_restitution():
     for e in (1e-6, 0.05, 0.5, 0.99):
         assert abs(restitution(damping_ratio(e)) - e) < 1e-12
+
+
+def test_rolling_resistance_caps_the_moment_and_dissipates():
+    # frictionless pair pressed together, spinning against each other: only the rolling
+    # spring acts; its moment saturates at μr r_eff fn and the slip dissipates energy
+    law = ContactLaw(kn=1e4, e=0.5, mu=0.0, mu_roll=0.1)
+    st = two_discs([0.5, 0.5], [[4.5, 5.0], [5.49, 5.0]], 0.0, omega=(2.0, -2.0))
+    dyn = Dynamics(law, time_step(law, st.mass.min(), 0.05), 0.2, 1e-3, 0.01, 0.01)
+    neighbours.rebuild(st, dyn.skin)
+    evaluate_forces(st, dyn)
+    moments = []
+    for _ in range(200):
+        advance(st, dyn, 5)
+        l = st.positions()[1] - st.positions()[0]
+        fn = -st.pair_f[0, :2] @ (l / np.linalg.norm(l))
+        if fn <= 0.0:          # the overlap pushed the discs apart: the contact is over
+            break
+        mr = st.pair_f[0, 2]
+        assert abs(st.pair_f[0, 3] + mr) < 1e-12 * max(abs(mr), 1e-300) + 1e-15
+        assert abs(mr) <= 0.1 * 0.25 * fn * (1 + 1e-12)
+        moments.append(abs(mr) / (0.1 * 0.25 * fn))
+    assert len(moments) > 5 and max(moments) > 0.999 and st.acc[8] > 0.0  # saturated, dissipating
