@@ -135,7 +135,7 @@ def test_rolling_resistance_caps_the_moment_and_dissipates():
     evaluate_forces(st, dyn)
     moments = []
     for _ in range(200):
-        advance(st, dyn, 5)
+        advance(st, dyn, 1)
         l = st.positions()[1] - st.positions()[0]
         fn = -st.pair_f[0, :2] @ (l / np.linalg.norm(l))
         if fn <= 0.0:          # the overlap pushed the discs apart: the contact is over
