@@ -61,3 +61,18 @@ def test_cell_narrower_than_two_cutoffs_is_refused():
     st = new_state(np.full(2, 0.5), np.array([[0.2, 0.2], [0.7, 0.7]]), np.diag([2.0, 2.0]))
     with pytest.raises(CellError, match="too small"):
         neighbours.rebuild(st, 0.2)
+
+
+def test_rebuild_in_a_skewed_cell_reduces_it_without_moving_any_disc():
+    rng = np.random.default_rng(7)
+    h = np.array([[9.0, 9.0], [0.0, 9.0]])          # simple shear to γ = 1
+    st = new_state(np.full(50, 0.45), rng.random((50, 2)), h)
+    x0 = st.positions()
+    neighbours.rebuild(st, 0.3)
+    assert not np.allclose(st.h, h) and np.isclose(st.volume, 81.0)
+    x1 = st.positions()
+    lat = np.linalg.solve(st.h, (x1 - x0).T).T          # displacement in lattice vectors
+    assert np.allclose(lat, np.rint(lat), atol=1e-9)     # same discs, periodic images only
+    listed = {(int(i), int(j), int(a), int(b)) for (i, j), (a, b)
+              in zip(st.pair_ij[:st.n_pairs], st.pair_shift[:st.n_pairs])}
+    assert listed == brute_force_pairs(st, 0.3)
