@@ -102,6 +102,10 @@ class Section:
         """This section's part of a kernel's parameter array (layout: next to the kernel)."""
         return ()
 
+    def to_dict(self) -> dict[str, float]:
+        """The section as its TOML table (the inverse of :meth:`from_dict`)."""
+        return {_key(f): getattr(self, f.name) for f in fields(self)}
+
     @classmethod
     def from_dict(cls, table: Mapping) -> "Section":
         if not isinstance(table, Mapping):
@@ -339,6 +343,10 @@ class Params:
     def with_tier(self, tier: int) -> "Params":
         """The same sections with another tier selected (validated)."""
         return Params(tier, self.sections, self.source)
+
+    def to_dict(self) -> dict:
+        """The parameter set as a TOML/JSON document (the inverse of :meth:`from_dict`)."""
+        return {"tier": self.tier, **{name: s.to_dict() for name, s in self.sections.items()}}
 
     @classmethod
     def from_dict(cls, data: Mapping, source: str = "<dict>") -> "Params":
