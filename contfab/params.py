@@ -6,6 +6,8 @@ A parameter file holds the selected ``tier`` and one table per section::
     [regularization]   lambda, p_ref, nu          (all tiers)
     [tier0]            phi_deg, psi_deg            (tier 0)
     [tier1]            phi_star_deg, dphi_dc_deg, dpsi_dc_deg, c_star, phi_min_deg, phi_max_deg
+    [tier2]            a0_deg..a3_deg, b0_deg..b3_deg, sharpness, n_search, fabric_law,
+                       kappa_a, k_c, k_o, z_crit, b_ratio_crit, relax_rate (tier 2, with [tier1])
     [initial]          c0, A0, B0, theta_p0_deg    (initial state of tiers >= 1)
 
 Each section is a small frozen dataclass (a :class:`Section`) whose fields declare
@@ -18,7 +20,7 @@ Adding a section is local: write its dataclass, add it to :data:`SECTIONS`, and
 list which sections a tier's kernel reads in :data:`TIER_SECTIONS`.
 :meth:`Params.array` concatenates their :meth:`Section.array` parts into the flat
 float64 array the kernel reads; the index layout is documented next to each
-kernel (tiers 0/1: :mod:`contfab.models.cone`).
+kernel (tiers 0/1: :mod:`contfab.models.cone`; tier 2: :mod:`contfab.models.fabric_model`).
 
 Units: angles in degrees here (user-facing), radians in the arrays; stresses in
 the scene's stress unit (``p_ref`` is the scene's stress scale, e.g. P0 = 1 in DEM
@@ -230,6 +232,91 @@ class Tier1(Section):
 
 
 @dataclass(frozen=True)
+class Tier2(Section):
+    """Tier 2: friction and dilatancy per slip plane, fabric hardening (seed 000 §5, §8).
+
+    φ(θ) = a0 + φ'(c - c*) + a1 A + a2 B cos(2(θ - θp) + a3), ψ(θ) likewise with b0..b3
+    (seed eq. 1.8; the c-terms and the clamps are tier 1's, read from ``[tier1]``: with
+    a0 = φ*, b0 = a1 = b1 = a2 = b2 = 0 tier 2 is tier 1). The yield function is the
+    softmax-weighted mean (``sharpness`` β) of the two conjugate slip families' exact maxima,
+    found from a grid of ``n_search`` planes per family (:mod:`contfab.models.slip_planes`).
+    ``fabric_law``: "balance" (the projected balance law, κa, kc, ko) or "relaxation" (toward
+    the critical fabric z_crit, b_ratio_crit at rate relax_rate per unit plastic shear
+    strain) (:mod:`contfab.models.fabric_law`).
+    """
+
+    NAME: ClassVar[str] = "tier2"
+    LAWS: ClassVar[dict[str, int]] = {"balance": 0, "relaxation": 1}
+    a0_deg: float = param("deg", Range(0.0, 90.0), "a0: isotropic plane friction (tier 1's phi*)")
+    a1_deg: float = param("deg per unit A", Range(-90.0, 90.0, True, True),
+                          "a1: plane friction per unit A = z/pi", default=0.0)
+    a2_deg: float = param("deg per unit B", Range(-30.0, 30.0, True, True),
+                          "a2: plane friction per unit anisotropy B (|a2| <= 30: measured, the "
+                          "plane search stays exact)", default=0.0)
+    a3_deg: float = param("deg", Range(-180.0, 180.0, True, True),
+                          "a3: phase of the friction anisotropy", default=0.0)
+    b0_deg: float = param("deg", Range(-90.0, 90.0), "b0: isotropic plane dilatancy", default=0.0)
+    b1_deg: float = param("deg per unit A", Range(-90.0, 90.0, True, True),
+                          "b1: plane dilatancy per unit A", default=0.0)
+    b2_deg: float = param("deg per unit B", Range(-90.0, 90.0, True, True),
+                          "b2: plane dilatancy per unit anisotropy B", default=0.0)
+    b3_deg: float = param("deg", Range(-180.0, 180.0, True, True),
+                          "b3: phase of the dilatancy anisotropy", default=0.0)
+    sharpness: float = param("-", POSITIVE, "softmax sharpness beta: f falls short of the "
+                             "strict max by at most 0.28 |sigma| / beta", default=50.0)
+    n_search: float = param("planes per family", Range(0.0, 1024.0, True, True),
+                            "plane-search grid (an integer; 0: warm start only)", default=8.0)
+    fabric_law: float = param("balance | relaxation", Range(0.0, 1.0, True, True),
+                              "fabric hardening law", default=0.0)
+    kappa_a: float = param("-", Range(0.0, math.inf, lo_closed=True),
+                           "balance law: advection coefficient kappa_a", default=3.94)
+    k_c: float = param("-", Range(0.0, math.inf, lo_closed=True),
+                       "balance law: creation coefficient kc", default=17.76)
+    k_o: float = param("-", Range(0.0, math.inf, lo_closed=True),
+                       "balance law: opening coefficient ko", default=10.0)
+    z_crit: float = param("-", Range(0.0, 6.0), "relaxation law: critical coordination z_c",
+                          default=3.0)
+    b_ratio_crit: float = param("-", Range(0.0, 1.0, lo_closed=True),
+                                "relaxation law: critical anisotropy B/A", default=0.25)
+    relax_rate: float = param("per unit plastic shear strain", Range(0.0, math.inf, lo_closed=True),
+                              "relaxation law: rate k", default=10.0)
+
+    @classmethod
+    def from_dict(cls, table: Mapping) -> "Tier2":
+        """As :meth:`Section.from_dict`, with ``fabric_law`` given by name."""
+        if isinstance(table, Mapping) and isinstance(table.get("fabric_law"), str):
+            law = table["fabric_law"]
+            if law not in cls.LAWS:
+                raise ParamError(f"[tier2] fabric_law = {law!r} is not a known law "
+                                 f"(accepted: {', '.join(cls.LAWS)})")
+            table = {**table, "fabric_law": cls.LAWS[law]}
+        return super().from_dict(table)
+
+    def check(self) -> None:
+        if self.n_search != int(self.n_search):
+            raise ParamError(f"[tier2] n_search = {self.n_search:g} is not an integer "
+                             f"(accepted range [0, 1024])")
+        if self.fabric_law != int(self.fabric_law):
+            raise ParamError(f"[tier2] fabric_law = {self.fabric_law:g} is not a known law "
+                             f"(accepted: {', '.join(self.LAWS)})")
+        a_c = self.z_crit / math.pi
+        steric = 1.0 - math.pi / 6.0 * a_c - math.sqrt(3.0) / 4.0 * self.b_ratio_crit * a_c
+        if not steric > 0.0:
+            raise ParamError(
+                f"[tier2] z_crit = {self.z_crit:g}, b_ratio_crit = {self.b_ratio_crit:g} is not "
+                f"an admissible critical fabric: need B/A < 1 and z_c/6 + (sqrt(3)/4) "
+                f"b z_c/pi < 1 (seed 000 eqs 1.14-1.15), got "
+                f"{self.z_crit / 6 + math.sqrt(3) / 4 * self.b_ratio_crit * a_c:.4g}")
+
+    def array(self) -> tuple[float, ...]:
+        r = math.radians
+        return (r(self.a0_deg), r(self.a1_deg), r(self.a2_deg), r(self.a3_deg),
+                r(self.b0_deg), r(self.b1_deg), r(self.b2_deg), r(self.b3_deg),
+                self.sharpness, self.n_search, self.fabric_law, self.kappa_a, self.k_c,
+                self.k_o, self.z_crit / math.pi, self.b_ratio_crit, self.relax_rate)
+
+
+@dataclass(frozen=True)
 class Initial(Section):
     """The initial state: packing fraction and fabric (A, B, θp), p(θ) = A + B cos 2(θ - θp)."""
 
@@ -262,6 +349,7 @@ SECTIONS: dict[str, type[Section]] = {
     "regularization": Regularization,
     "tier0": Tier0,
     "tier1": Tier1,
+    "tier2": Tier2,
     "initial": Initial,
 }
 """Every known section, by its TOML table name."""
@@ -269,6 +357,7 @@ SECTIONS: dict[str, type[Section]] = {
 TIER_SECTIONS: dict[int, tuple[str, ...]] = {
     0: ("regularization", "tier0"),
     1: ("regularization", "tier1"),
+    2: ("regularization", "tier1", "tier2"),     # tier 2 reads tier 1's c-terms and clamps
 }
 """Sections whose :meth:`Section.array` parts, concatenated, form a tier's kernel array."""
 

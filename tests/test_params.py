@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from contfab.models import tiers
+from contfab.models import fabric_model, tiers
 from contfab.params import ParamError, Params, default_params, default_params_path, load_params
 
 
@@ -39,6 +39,13 @@ def test_array_layout_matches_the_kernel_doc():
                                        rel=1e-15)
     assert p.array(1) == pytest.approx([k, g, math.radians(22), math.radians(250), math.radians(300),
                                         0.81, math.radians(1), math.radians(60)], rel=1e-15)
+    # fabric_model.py: tier 2 = tier 1's array, then a0..a3, b0..b3 (rad), β, n_search, law,
+    # κa, kc, ko, z_c/π, b_c, k
+    assert p.array(2)[:8] == pytest.approx(p.array(1), rel=1e-15)
+    assert p.array(2).size == fabric_model.N_PRM
+    assert p.array(2)[8] == pytest.approx(math.radians(22)) and p.array(2)[18] == 0.0
+    relax = p.replace("tier2", fabric_law=1.0, z_crit=3.3)
+    assert relax.array(2)[18] == 1.0 and relax.array(2)[22] == pytest.approx(3.3 / math.pi)
     a = p.array(1)
     a[0] = -1.0                                      # a copy: the cached array is untouched
     assert p.array(1)[0] == pytest.approx(k)
@@ -78,7 +85,16 @@ BAD = [
     ({"regularization.p_ref": float("nan")}, ["p_ref = nan", "(0, inf)"]),
     ({"regularization.nu": 1.0}, ["nu = 1", "(-1, 1)"]),
     ({"regularization.lambda": "big"}, ["lambda = 'big' is not a number", "(0, inf)"]),
-    ({"tier": 3}, ["tier = 3", "accepted: 0, 1"]),
+    ({"tier2.a0_deg": 0.0}, ["a0_deg = 0", "(0, 90)"]),
+    ({"tier2.a2_deg": 45.0}, ["a2_deg = 45", "[-30, 30]"]),
+    ({"tier2.sharpness": 0.0}, ["sharpness = 0", "(0, inf)"]),
+    ({"tier2.n_search": 2.5}, ["n_search = 2.5 is not an integer", "[0, 1024]"]),
+    ({"tier2.fabric_law": "diffusion"}, ["fabric_law = 'diffusion'", "balance, relaxation"]),
+    ({"tier2.k_c": -1.0}, ["k_c = -1", "[0, inf)"]),
+    ({"tier2.b_ratio_crit": 1.0}, ["b_ratio_crit = 1", "[0, 1)"]),
+    ({"tier2.z_crit": 5.5, "tier2.b_ratio_crit": 0.3},
+     ["z_crit = 5.5, b_ratio_crit = 0.3", "not an admissible critical fabric", "1.144"]),
+    ({"tier": 3}, ["tier = 3", "accepted: 0, 1, 2"]),
     ({"tier": "one"}, ["tier = 'one'", "accepted: 0, 1"]),
     # a strongly contractant tier 0 with a high nu: G + K sin φ sin ψ <= 0
     ({"tier0.phi_deg": 60.0, "tier0.psi_deg": -60.0, "regularization.nu": 0.5},
@@ -128,7 +144,7 @@ def test_replace_revalidates_and_unknown_tier_at_update():
         p.replace("regularization", lam=-1.0)
     with pytest.raises(ParamError, match="phi_deg = 0"):
         p.replace("tier0", phi_deg=0.0)
-    with pytest.raises(ParamError, match="tier = 2 is not an available model tier"):
-        tiers.update(2, np.zeros((1, 3)), np.zeros((1, 5)), np.zeros((1, 3)), np.zeros(1), p)
+    with pytest.raises(ParamError, match="tier = 3 is not an available model tier"):
+        tiers.update(3, np.zeros((1, 3)), np.zeros((1, 5)), np.zeros((1, 3)), np.zeros(1), p)
     with pytest.raises(ParamError, match="tier = 7"):
         p.with_tier(7)

@@ -11,7 +11,8 @@
 The result holds ``stress`` (n, 3), ``state`` (n, k), ``tangent`` (n, 3, 3) — the
 algorithmic tangent ∂σ_{n+1}/∂Δε in Voigt/engineering shear, non-symmetric when ψ ≠ φ,
 not including the dependence on Δω — and ``status`` (n,) int8: 0 rigid/elastic,
-1 plastic (cone face), 2 apex, -1 failed. Failed points carry their *input* stress and
+1 plastic (cone face), 2 apex, 3 plastic with the fabric projected onto the admissible set
+(tier 2: reported, never silent), -1 failed. Failed points carry their *input* stress and
 state and the elastic tangent; no NaN or inf is ever returned: the caller cuts the step.
 
 Inputs are committed state; nothing is modified in place (trial and committed state
@@ -27,7 +28,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from contfab.models import cone
+from contfab.models import cone, fabric_model
 from contfab.params import Params, ParamError
 
 STATE_NAMES: dict[int, tuple[str, ...]] = {
@@ -41,6 +42,7 @@ STATE_NAMES: dict[int, tuple[str, ...]] = {
 KERNELS = {
     0: cone.update_points_tier0,
     1: cone.update_points_tier1,
+    2: fabric_model.update_points,
 }
 """The numba kernel of each available tier."""
 
@@ -49,7 +51,8 @@ PARALLEL_MIN_POINTS = 4096
 (tens of µs, up to ms on a loaded machine) than updating a few thousand points."""
 
 STATUS_NAMES = {cone.STATUS_ELASTIC: "elastic", cone.STATUS_FACE: "plastic",
-                cone.STATUS_APEX: "apex", cone.STATUS_FAILED: "failed"}
+                cone.STATUS_APEX: "apex", fabric_model.STATUS_PROJECTED: "fabric projected",
+                cone.STATUS_FAILED: "failed"}
 
 
 @dataclass(frozen=True)
