@@ -281,6 +281,11 @@ class Tier2(Section):
     relax_rate: float = param("per unit plastic shear strain", Range(0.0, math.inf, lo_closed=True),
                               "relaxation law: rate k", default=10.0)
 
+    def to_dict(self) -> dict:
+        """As :meth:`Section.to_dict`, with ``fabric_law`` by name."""
+        names = {code: name for name, code in self.LAWS.items()}
+        return {**super().to_dict(), "fabric_law": names[int(self.fabric_law)]}
+
     @classmethod
     def from_dict(cls, table: Mapping) -> "Tier2":
         """As :meth:`Section.from_dict`, with ``fabric_law`` given by name."""
