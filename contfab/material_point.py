@@ -284,10 +284,10 @@ class _Runner:
     """Runs the stages of one path on a point (see the module doc)."""
 
     def __init__(self, path: Path, params: Params, tier: int, increment: float,
-                 min_increment: float, rtol: float, bar):
+                 min_increment: float, rtol: float):
         self.path, self.params, self.tier = path, params, tier
-        self.increment, self.min_increment, self.rtol, self.bar = (
-            increment, min_increment, rtol, bar)
+        self.increment, self.min_increment, self.rtol = increment, min_increment, rtol
+        self.bar = None               # a tqdm bar over τ, set by the caller
         self.h = increment
         self.p_ref = params.p_ref
         names = tiers.STATE_NAMES[tier]
@@ -295,6 +295,18 @@ class _Runner:
         self.i_fabric = [names.index(k) for k in ("A", "Bc", "Bs")] if "A" in names else None
         initial = params.sections.get("initial")
         self.c0 = initial.c0 if initial is not None else None
+        self.columns = tuple(
+            c for c in HISTORY_COLUMNS + EXTRA_COLUMNS
+            if not (c in FABRIC_COLUMNS and self.i_fabric is None)
+            and not (c == "c" and self.i_c is None and self.c0 is None))
+        for k, stage in enumerate(path.stages):
+            for cond in stage.until:
+                if cond.quantity not in self.columns:
+                    raise ValueError(
+                        f"path {path.name!r}, stage {k} ({stage.name!r}): until.{cond.quantity} "
+                        f"is not a quantity of tier {tier} (it carries no "
+                        f"{'fabric' if cond.quantity in FABRIC_COLUMNS else 'packing fraction'}); "
+                        f"accepted: {[c for c in self.columns if c not in ('stage', 'tau')]}")
         self.out = tiers.allocate(tier, 1)
         self.rows: list[dict] = []
         self.stats = {"increments": 0, "cuts": 0, "evaluations": 0, "newton_iterations": 0,
@@ -359,8 +371,9 @@ class _Runner:
             f"the increment was cut to {h:.3g} < min_increment = {self.min_increment:.3g} and "
             f"still fails: {sol.reason}{last}. Stress targets (units of P0) of the controlled "
             f"components {controlled}: {np.round(target, 6).tolist()}, stress now "
-            f"{np.round(pt.stress / self.p_ref, 6).tolist()} — a target outside the yield cone "
-            f"of tier {self.tier} cannot be reached")
+            f"{np.round(pt.stress / self.p_ref, 6).tolist()}. A stress target outside the "
+            f"yield cone of tier {self.tier} cannot be reached (and one on the cone of a "
+            f"non-hardening state leaves the plastic flow undetermined)")
 
     # -- a stage
 
@@ -443,15 +456,12 @@ class _Runner:
         return pt
 
     def result(self, pt: _Point, seconds: float) -> PointResult:
-        columns = [c for c in HISTORY_COLUMNS + EXTRA_COLUMNS
-                   if not (c in FABRIC_COLUMNS and self.i_fabric is None)
-                   and not (c == "c" and self.i_c is None and self.c0 is None)]
         history = {c: np.array([r[c] for r in self.rows],
                                dtype=np.int64 if c in ("stage", "increments") else np.float64)
-                   for c in columns}
+                   for c in self.columns}
         stats = dict(self.stats, seconds=seconds, increment=self.increment,
                      min_increment=self.min_increment)
-        return PointResult(self.path, self.tier, tuple(columns), history, pt.stress.copy(),
+        return PointResult(self.path, self.tier, self.columns, history, pt.stress.copy(),
                            pt.state.copy(), stats)
 
 
@@ -509,13 +519,13 @@ def run_path(path: Path | str, params: Params | None = None, tier: int | None = 
     params, tier, stress0, state0 = _prepare(params, tier, increment, min_increment, stress0,
                                              state0)
     min_increment = MIN_INCREMENT_FRACTION * increment if min_increment is None else min_increment
+    runner = _Runner(path, params, tier, increment, min_increment, rtol)
     bar = None
     if progress:
         from tqdm import tqdm
-        bar = tqdm(total=sum(s.length for s in path.stages), desc=f"{path.name} (τ)",
-                   mininterval=0.5, leave=False, bar_format="{l_bar}{bar}| {n:.3g}/{total:.3g} "
-                                               "[{elapsed}<{remaining}]")
-    runner = _Runner(path, params, tier, increment, min_increment, rtol, bar)
+        bar = runner.bar = tqdm(total=sum(s.length for s in path.stages), desc=f"{path.name} (τ)",
+                                mininterval=0.5, leave=False,
+                                bar_format="{l_bar}{bar}| {n:.3g}/{total:.3g} [{elapsed}<{remaining}]")
     t0 = time.perf_counter()
     pt = _Point(stress0, state0)
     try:

@@ -376,6 +376,12 @@ def test_bad_options_are_clear_errors(kwargs, words):
         assert w in str(err.value)
 
 
+def test_stop_on_a_quantity_the_tier_does_not_carry_is_refused_before_running():
+    path = stage_path("to_fabric", 0.1, 0.01, {"yy": -1.0}, {"xx": -1.0}, until={"B": 0.1})
+    with pytest.raises(ValueError, match=r"until.B is not a quantity of tier 1 .*no fabric"):
+        mp.run_path(path, default_params(), 1)
+
+
 def test_probe_family_needs_run_family_and_unknown_path_names_the_standard_ones():
     with pytest.raises(ValueError, match="probe family"):
         mp.run_path("stress_probes")
