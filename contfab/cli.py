@@ -105,11 +105,36 @@ def _run_dem(args) -> None:
         print(f"{what:>14}: {f}")
 
 
+# --------------------------------------------------------------------------- point
+
+def _add_point(p: argparse.ArgumentParser) -> None:
+    from contfab.material_point import DEFAULT_INCREMENT
+
+    p.add_argument("path", help="a standard path name (see 'contfab paths') or a path file")
+    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("--params", default=None,
+                   help="parameter TOML file (default: the shipped contfab/data/default_params.toml)")
+    p.add_argument("--tier", type=int, default=None,
+                   help="model tier (default: the 'tier' of the parameter file)")
+    p.add_argument("--increment", type=float, default=DEFAULT_INCREMENT,
+                   help=f"increment Δτ_max in reference strain (default {DEFAULT_INCREMENT:g}); "
+                        f"halving it halves the integration error (first order)")
+
+
+def _run_point(args) -> None:
+    from contfab.point_job import run_job
+
+    written = run_job(args.path, args.out, args.params, args.tier, args.increment)
+    for what, f in written.items():
+        print(f"{what:>14}: {f}")
+
+
 # --------------------------------------------------------------------------- bench
 
 BENCHES = {
     "dem": "contfab.bench.dem",
     "model": "contfab.bench.model",
+    "point": "contfab.bench.point",
 }
 """Benchmark name -> module with ``run(args) -> dict`` of figures."""
 
@@ -135,6 +160,8 @@ COMMANDS = {
     "paths": (_add_paths, _run_paths, "list the standard loading paths, or show one"),
     "dem": (_add_dem, _run_dem, "the 2D disc-DEM RVE: prepare samples, run loading paths"),
     "bench": (_add_bench, _run_bench, "speed and memory benchmarks"),
+    "point": (_add_point, _run_point, "drive one material point along a loading path (CSV, "
+                                      "JSON, PNG)"),
 }
 
 

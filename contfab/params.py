@@ -104,6 +104,10 @@ class Section:
         """This section's part of a kernel's parameter array (layout: next to the kernel)."""
         return ()
 
+    def to_dict(self) -> dict[str, float]:
+        """The section as its TOML table (the inverse of :meth:`from_dict`)."""
+        return {_key(f): getattr(self, f.name) for f in fields(self)}
+
     @classmethod
     def from_dict(cls, table: Mapping) -> "Section":
         if not isinstance(table, Mapping):
@@ -277,6 +281,11 @@ class Tier2(Section):
     relax_rate: float = param("per unit plastic shear strain", Range(0.0, math.inf, lo_closed=True),
                               "relaxation law: rate k", default=10.0)
 
+    def to_dict(self) -> dict:
+        """As :meth:`Section.to_dict`, with ``fabric_law`` by name."""
+        names = {code: name for name, code in self.LAWS.items()}
+        return {**super().to_dict(), "fabric_law": names[int(self.fabric_law)]}
+
     @classmethod
     def from_dict(cls, table: Mapping) -> "Tier2":
         """As :meth:`Section.from_dict`, with ``fabric_law`` given by name."""
@@ -428,6 +437,10 @@ class Params:
     def with_tier(self, tier: int) -> "Params":
         """The same sections with another tier selected (validated)."""
         return Params(tier, self.sections, self.source)
+
+    def to_dict(self) -> dict:
+        """The parameter set as a TOML/JSON document (the inverse of :meth:`from_dict`)."""
+        return {"tier": self.tier, **{name: s.to_dict() for name, s in self.sections.items()}}
 
     @classmethod
     def from_dict(cls, data: Mapping, source: str = "<dict>") -> "Params":

@@ -1,48 +1,20 @@
 """Tier 1 on a biaxial path: convergence to the rigid-plastic limit as λ grows (the note in
-cone.py), the closed-form stress at yield, dense/loose states reaching the critical state
-(acceptance 2), and quadratic Newton convergence of the mixed-control step with the
-consistent tangent (acceptance 5)."""
+cone.py), run by the material-point driver; the closed-form stress at yield; the
+rigid-plastic ODE for c. (Acceptance 2 and 5 live in test_material_point.py.)"""
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from contfab.models import tiers
+from contfab import material_point as mp
 from contfab.models.cone import friction_angles
 from contfab.params import default_params
+from dem.paths import parse_path
 
-P0 = 1.0
-C0 = np.array([0.83, 0.79])          # dense and loose around c* = 0.81 (default parameters)
-
-
-def biaxial(params, de_yy, n_steps, record=False):
-    """Biaxial compression: σxx = -P0 held, Δεyy prescribed, Δγxy = 0, no spin.
-
-    Δεxx of each step is solved by Newton with the tangent entry ∂σxx/∂Δεxx, from the
-    previous step's value. Returns the stress and state after each step and the residual
-    sequences |σxx + P0| of every step."""
-    n = len(C0)
-    stress = np.tile([-P0, -P0, 0.0], (n, 1))
-    state = np.stack([np.zeros(n), C0], 1)
-    x = np.zeros(n)
-    stresses, states, residuals = [], [], []
-    scale = P0 + params.array(1)[0] * abs(de_yy)         # round-off scale of the trial stress
-    for _ in range(n_steps):
-        seq = []
-        for _ in range(12):
-            de = np.stack([x, np.full(n, de_yy), np.zeros(n)], 1)
-            res = tiers.update(1, stress, state, de, np.zeros(n), params)
-            r = res.stress[:, 0] + P0
-            seq.append(np.abs(r))
-            if np.all(np.abs(r) <= 1e-14 * scale):
-                break
-            x = x - r / res.tangent[:, 0, 0]
-        assert np.all(res.status >= 0)
-        residuals.append(seq)
-        stress, state = res.stress, res.state
-        if record:
-            stresses.append(stress)
-            states.append(state)
-    return np.array(stresses), np.array(states), residuals
+C0 = (0.83, 0.79)          # dense and loose around c* = 0.81 (default parameters)
+STRAIN = 0.05
+BIAXIAL = parse_path({"name": "biaxial_short", "stage": [
+    {"name": "compress", "length": STRAIN, "output_every": STRAIN / 10,
+     "L": {"yy": -1.0, "xy": 0.0, "yx": 0.0}, "sigma": {"xx": -1.0}}]})
 
 
 def rigid_plastic_c(params, eps_yy):
@@ -59,16 +31,19 @@ def rigid_plastic_c(params, eps_yy):
 
 def test_results_converge_at_first_order_in_one_over_lambda():
     base = default_params()
-    steps, de = 200, -0.05 / 200
+    prm = base.array(1)
     finals = {}
     for lam in (1e2, 1e3, 1e4, 1e6):
-        stresses, states, _ = biaxial(base.replace("regularization", lam=lam), de, steps, record=True)
-        finals[lam] = states[-1, :, 1], stresses[-1, :, 1]
+        params = base.replace("regularization", lam=lam)
+        runs = [mp.run_path(BIAXIAL, params, 1, increment=STRAIN / 200, state0={"c": c})
+                for c in C0]
+        c_end = np.array([r["c"][-1] for r in runs])
+        syy_end = np.array([r["syy"][-1] for r in runs])
+        finals[lam] = c_end, syy_end
         # at yield the stress is the rigid-plastic one for the current c, at any λ:
-        # σyy = -P0 (1 + sin φ)/(1 - sin φ)
-        prm = base.array(1)
-        sphi = np.sin([friction_angles(c, *prm[2:])[0] for c in states[-1, :, 1]])
-        assert stresses[-1, :, 1] == pytest.approx(-P0 * (1 + sphi) / (1 - sphi), rel=1e-12)
+        # σyy = -P0 (1 + sin φ)/(1 - sin φ) (to the driver's tolerance on σxx = -P0, 1e-12)
+        sphi = np.sin([friction_angles(c, *prm[2:])[0] for c in c_end])
+        assert syy_end == pytest.approx(-(1 + sphi) / (1 - sphi), rel=1e-11)
     c_ref, s_ref = finals[1e6]
     errors = [np.abs(finals[lam][0] - c_ref) for lam in (1e2, 1e3, 1e4)]
     orders = np.log10(np.array(errors[:-1]) / np.array(errors[1:]))
@@ -77,36 +52,6 @@ def test_results_converge_at_first_order_in_one_over_lambda():
     assert np.all(np.log10(np.array(s_err[:-1]) / np.array(s_err[1:])) > 0.9)
     # the λ -> ∞ run matches the rigid-plastic ODE up to the backward-Euler step error
     # (first order in the step: 7e-6 here, measured), far below the λ = 1e2 error
-    c_rp = rigid_plastic_c(base, -0.05)
+    c_rp = rigid_plastic_c(base, -STRAIN)
     assert np.all(np.abs(c_ref - c_rp) < 2e-5)
     assert np.all(errors[0] > 50 * np.abs(c_ref - c_rp))
-
-
-def test_dense_and_loose_reach_the_critical_state():
-    params = default_params()
-    stresses, states, _ = biaxial(params, -1e-3, 2000, record=True)
-    c = states[:, :, 1]
-    p = -0.5 * (stresses[:, :, 0] + stresses[:, :, 1])
-    r = 0.5 * np.abs(stresses[:, :, 0] - stresses[:, :, 1])
-    ratio = r / p
-    c_star = params.tier1.c_star
-    sin_star = np.sin(np.radians(params.tier1.phi_star_deg))
-    # dense dilates (c falls) and softens; loose contracts (c rises) and hardens
-    assert np.all(np.diff(c[:, 0]) <= 0) and np.all(np.diff(c[:, 1]) >= 0)
-    peak = np.argmax(ratio[:, 0])
-    assert ratio[peak, 0] > sin_star + 0.05 and np.all(np.diff(ratio[peak:, 0]) <= 1e-15)
-    assert np.all(np.diff(ratio[5:, 1]) >= -1e-15)
-    # both end at c* with R/P = sin φ*, to 1e-6
-    assert c[-1] == pytest.approx([c_star, c_star], abs=1e-6)
-    assert ratio[-1] == pytest.approx([sin_star, sin_star], abs=1e-6)
-
-
-def test_mixed_control_newton_converges_quadratically():
-    params = default_params()
-    _, _, residuals = biaxial(params, -2.5e-4, 40)
-    plastic_steps = [np.array(seq) for seq in residuals[5:]]
-    for seq in plastic_steps:
-        assert len(seq) <= 4
-        for k in range(len(seq) - 1):
-            if np.all(seq[k] > 1e-11):                  # above round-off: quadratic
-                assert np.all(seq[k + 1] <= 10 * seq[k] ** 2 + 1e-12)

@@ -148,3 +148,15 @@ def test_replace_revalidates_and_unknown_tier_at_update():
         tiers.update(3, np.zeros((1, 3)), np.zeros((1, 5)), np.zeros((1, 3)), np.zeros(1), p)
     with pytest.raises(ParamError, match="tier = 7"):
         p.with_tier(7)
+
+
+def test_to_dict_round_trips_through_from_dict():
+    """The sidecar of a run writes Params.to_dict(): reading it back gives the same kernels'
+    arrays for every tier, with TOML keys (lambda) and the fabric law by name."""
+    params = default_params()
+    doc = params.to_dict()
+    assert doc["regularization"]["lambda"] == params.regularization.lam
+    assert doc["tier2"]["fabric_law"] == "balance"
+    back = Params.from_dict(doc)
+    for tier in sorted(tiers.KERNELS):
+        assert np.array_equal(back.array(tier), params.array(tier))
