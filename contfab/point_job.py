@@ -16,18 +16,15 @@ written atomically, so an error leaves no partial file.
 """
 from __future__ import annotations
 
-import platform
-import subprocess
 import time
 from pathlib import Path as FsPath
 
-import numpy as np
 
-from contfab import __version__
 from contfab import material_point as mp
 from contfab.models import tiers
 from contfab.params import default_params, default_params_path, load_params
 from dem.fileio import write_csv, write_json
+from dem.provenance import code_versions
 from dem.paths import load_path
 
 
@@ -72,26 +69,10 @@ def run_job(path_name: str, out_dir: str | FsPath, params_file: str | None = Non
                        "newton_iterations": sum(s["newton_iterations"] for s in stats),
                        "stops": [s["stops"] for s in stats]},
         "timing": {"total_s": seconds, "us_per_increment": 1e6 * seconds / max(increments, 1)},
-        "versions": versions(),
+        "versions": code_versions(),
         "files": {k: str(v) for k, v in written.items()},
     }
     written["sidecar"] = write_json(out_dir / "history.json", sidecar)
     return written
 
 
-def versions() -> dict:
-    """Code version (package version and git commit of the checkout, if any) and libraries."""
-    import numba
-    import scipy
-
-    try:
-        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=FsPath(__file__).parent,
-                                capture_output=True, text=True, timeout=5).stdout.strip() or None
-        dirty = bool(subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
-                                    cwd=FsPath(__file__).parent, capture_output=True, text=True,
-                                    timeout=5).stdout.strip()) if commit else None
-    except (OSError, subprocess.SubprocessError):
-        commit, dirty = None, None
-    return {"contfab": __version__, "git_commit": commit, "git_dirty": dirty,
-            "python": platform.python_version(), "numpy": np.__version__,
-            "numba": numba.__version__, "scipy": scipy.__version__}

@@ -20,7 +20,6 @@ file is written atomically, so an error leaves no partial file.
 from __future__ import annotations
 
 import math
-import platform
 import time
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path as FsPath
@@ -34,6 +33,7 @@ from dem.integrator import DT_FRACTION, dynamics
 from dem.servo import L_MAX_FACTOR
 from dem.particles import parse_radii, sample_radii
 from dem.paths import load_path
+from dem.provenance import code_versions
 from dem.prepare import compress_to_pressure, random_gas, switch_friction
 from dem.rve import PathRunner, history_table
 
@@ -170,7 +170,7 @@ def run_job(path_name: str, settings: Settings, out_dir: str | FsPath, resume: s
     written["history_plot"] = out_dir / "history.png"
     polar_plot(st, out_dir / "normals.png", f"{sub.name}: contact normals at the end")
     written["normals_plot"] = out_dir / "normals.png"
-    meta.update(dynamics=checkpoint.dynamics_dict(dyn), versions=_versions(),
+    meta.update(dynamics=checkpoint.dynamics_dict(dyn), versions=code_versions(),
                 timing={"prepare_s": t_prep, "total_s": time.perf_counter() - t0,
                         "steps": int(st.step)},
                 files={k: str(v) for k, v in written.items()})
@@ -178,17 +178,6 @@ def run_job(path_name: str, settings: Settings, out_dir: str | FsPath, resume: s
     return written
 
 
-def _versions() -> dict:
-    import numba
-    import scipy
-
-    from importlib.metadata import PackageNotFoundError, version
-    try:
-        own = version("contfab")
-    except PackageNotFoundError:
-        own = "unknown"
-    return {"contfab": own, "python": platform.python_version(), "numpy": np.__version__,
-            "numba": numba.__version__, "scipy": scipy.__version__}
 
 
 def _bar(enabled: bool, total, desc: str):
