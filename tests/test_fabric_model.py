@@ -161,6 +161,22 @@ def test_extreme_increments_give_finite_results(de, size, ratio, p, dw):
     assert admissibility_margin(q[2], np.hypot(q[3], q[4])) >= 0.0
 
 
+def test_huge_increment_is_solved_by_continuation_not_failed():
+    # Found by the test above: from σ = 0, a compressive shear of 10 (1000 %) defeated Newton
+    # from both starts (failed; nearby sizes went to the apex with c ~ 1e4). The face solution
+    # continues smoothly from the sizes Newton solves directly (10^0.9 .. 10^0.94).
+    prm = model_params(**ANISO)
+    sizes = np.linspace(0.9, 1.0, 6)
+    runs = [_update(prm, np.zeros(3), _state(0.81, 0.95, 0.3, 0.2),
+                    10.0 ** size * np.array([0.0, -1.0, -1.0])) for size in sizes]
+    assert all(r[3] == fm.STATUS_FACE for r in runs)
+    stress = np.array([r[0] for r in runs])
+    c = np.array([r[1][1] for r in runs])
+    assert np.all(np.diff(stress[:, 1]) < 0) and np.all(np.diff(c) < 0) and c[-1] > 0.75
+    # smooth: second differences small against first differences
+    assert np.abs(np.diff(stress, 2, axis=0)).max() < 0.1 * np.abs(np.diff(stress, axis=0)).max()
+
+
 def _wandering_increments(rng, n, steps, scale):
     """Random strain increments that keep most points yielding: a loading direction that
     wanders (random walk), a random volumetric ratio, sizes over three decades, random spin."""

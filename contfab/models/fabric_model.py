@@ -23,6 +23,8 @@ Yield f and flow N: :mod:`contfab.models.slip_planes`; fabric laws:
    exactly as in tier 1 (which makes the reduction to tier 1 exact). Local Newton with the
    analytic Jacobian (8x8; the slip planes condensed into it), from one cutting-plane step
    (near the surface) or tier 1's closed-form coaxial return; backtracking on max |residual|.
+   Where Newton fails from both (increments of hundreds of percent), the same problem is
+   reached by continuation in the trial stress (:func:`_continuation_return`).
    The face solution is accepted when it converged with Δγ >= 0 and P > 0 (status 1).
 5. Apex (status 2): σ = 0, all of C⁻¹σ_tr plastic, c = c_n exp(P_tr/K), zero tangent
    (as tier 1), when C⁻¹σ_tr dilates at least as much as the flow: tier 1's criterion
@@ -89,6 +91,8 @@ NEWTON_TOL_LAST = 1e-8
 """Local solve: from max |residual| below this the Newton step is the last (no re-evaluation)."""
 PLANE_STEP_TOL = 1e-9
 """Local solve: the planes' own Newton steps (radians) at convergence (values exact to ~δθ²)."""
+CONTINUATION_STEPS = 4
+"""Fallback of the local solve: trial stresses σ_n + (k/this) CΔε, k = 1..this, in turn."""
 
 
 # --------------------------------------------------------------------------- small linear algebra
@@ -398,6 +402,32 @@ def _face_return(c_n, qn, prm, sc, s_ref):
     return False, False
 
 
+@njit(cache=True, error_model="numpy")
+def _continuation_return(rotated, c_n, qn, prm, sc):
+    """The face solve by continuation in the trial stress, for increments too large for
+    Newton from one start: the step's backward-Euler problem with σ_tr(t) = σ_n + t CΔε
+    (``rotated`` = σ_n, ``sc.ttr`` = σ_tr(1)) at t = 1/k_max, 2/k_max, .., 1, each solve
+    starting from the last. Only the last is the step's own problem; returns as
+    :func:`_face_return`, with ``sc.ttr`` restored."""
+    ttr = sc.ttr
+    full = (ttr[0], ttr[1], ttr[2])
+    face = False
+    projected = False
+    for k in range(1, CONTINUATION_STEPS + 1):
+        t = k / CONTINUATION_STEPS
+        for j in range(3):
+            ttr[j] = rotated[j] + t * (full[j] - rotated[j])
+        s_ref = np.hypot(0.5 * (ttr[0] + ttr[1]), np.hypot(0.5 * (ttr[0] - ttr[1]), ttr[2]))
+        if k == 1:
+            _initial_guess(c_n, qn, prm, sc)
+        face, projected = _face_return(c_n, qn, prm, sc, s_ref)
+        if not face:
+            break
+    for j in range(3):
+        ttr[j] = full[j]
+    return face, projected
+
+
 # --------------------------------------------------------------------------- one point
 
 @njit(cache=True, error_model="numpy")
@@ -464,6 +494,8 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
         if near and not face:
             _initial_guess(c_n, qs, prm, sc)
             face, projected = _face_return(c_n, qs, prm, sc, s_ref)
+        if not face:
+            face, projected = _continuation_return((rxx, ryy, rxy), c_n, qs, prm, sc)
         # No face point found: the material separates if some plane's flow is less
         # dilatant than C⁻¹σ_tr; otherwise the local solve failed.
         apex = not face and shear * p_tr + bulk * spsi_min * r_tr <= 0.0
