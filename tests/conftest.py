@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from contfab.models import tiers
+from contfab.models import slip_planes, tiers
 from contfab.params import Params
 
 TIER1 = dict(phi_star_deg=25.0, dphi_dc_deg=60.0, dpsi_dc_deg=80.0, c_star=0.81)
@@ -32,3 +32,10 @@ def update(params, stress, state, dstrain, dspin, tier=2):
 def stress_at(p, r, alpha):
     """Voigt stress with pressure p, deviator radius r, major principal direction alpha."""
     return np.array([-p + r * np.cos(2 * alpha), -p - r * np.cos(2 * alpha), r * np.sin(2 * alpha)])
+
+
+def fabric_terms(prm, c, a, bc, bs):
+    """slip_planes.fabric_terms of one state (its Jacobian built here)."""
+    dpz = np.empty((slip_planes.N_P, 4))
+    slip_planes.fabric_terms_jacobian(prm, dpz)
+    return slip_planes.fabric_terms(c, a, bc, bs, prm, dpz)

@@ -4,6 +4,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from conftest import fabric_terms
 from contfab.bench import model
 from contfab.cli import main
 from contfab.models import slip_planes as sp
@@ -34,7 +35,7 @@ def test_anisotropic_tier2_case_starts_from_an_anisotropic_fabric_on_the_yield_s
     # the shear onto the surface moves the fabric a little from B/A = B_RATIO
     assert np.all(np.abs(ratio - model.B_RATIO) < 0.02)
     for i in range(0, 500, 50):
-        fab = sp.fabric_terms(*state[i, 1:], prm)
+        fab = fabric_terms(prm, *state[i, 1:])
         scale = np.hypot(0.5 * (stress[i, 0] + stress[i, 1]),
                          np.hypot(0.5 * (stress[i, 0] - stress[i, 1]), stress[i, 2]))
         f = sp.yield_value(*stress[i], fab, prm[16], 64, np.array([0.3, -0.3]))

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from conftest import model_params, stress_at, update
+from conftest import fabric_terms, model_params, stress_at, update
 from contfab.models import fabric_model as fm
 from contfab.models import slip_planes as sp
 from contfab.models import fabric_law
@@ -21,7 +21,7 @@ def _state(c, a, b, theta_p, gp=0.0):
 
 def _yield(prm, stress, c, a, bc, bs):
     th = np.array([0.3, -0.3])
-    return sp.yield_value(*stress, sp.fabric_terms(c, a, bc, bs, prm), prm[16], 64, th)
+    return sp.yield_value(*stress, fabric_terms(prm, c, a, bc, bs), prm[16], 64, th)
 
 
 def _update(params, stress, state, de, dw=0.0):

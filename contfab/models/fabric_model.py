@@ -174,7 +174,7 @@ def _residual(x, c_n, qn, prm, search, sc, s_ref):
     if not c > 0.0:
         return np.inf, False
     yf = sc.yf
-    fab = fabric_terms(c, x[5], x[6], x[7], prm)
+    fab = fabric_terms(c, x[5], x[6], x[7], prm, sc.dpz)
     yield_and_flow(x[0], x[1], x[2], fab, prm[16], search, 0, sc.theta, sc.pl, yf)
     n0 = yf[YF_N]
     n1 = yf[YF_N + 1]
@@ -250,9 +250,9 @@ def _residual(x, c_n, qn, prm, search, sc, s_ref):
 
 
 @njit(cache=True, error_model="numpy")
-def _dilatancy_range(c, a, bc, bs, prm):
+def _dilatancy_range(c, a, bc, bs, prm, dpz):
     """(sin ψ̄, sin ψ_min) at c: the isotropic part of ψ(θ) and its smallest value over planes."""
-    phi0, pc, ps, psi0, qc, qs, _, _, phi_lo, phi_hi = fabric_terms(c, a, bc, bs, prm)
+    phi0, pc, ps, psi0, qc, qs, _, _, phi_lo, phi_hi = fabric_terms(c, a, bc, bs, prm, dpz)
     phi = min(max(phi0, phi_lo), phi_hi)
     amp = np.hypot(qc, qs)
     return np.sin(min(max(psi0, -phi), phi)), np.sin(max(psi0 - amp, -phi_hi))
@@ -266,7 +266,8 @@ def _initial_guess(c_n, qn, prm, sc):
     shear = prm[1]
     ttr = sc.ttr
     x = sc.x
-    phi0, _, _, psi0, _, _, _, _, phi_lo, phi_hi = fabric_terms(c_n, qn[0], qn[1], qn[2], prm)
+    phi0, _, _, psi0, _, _, _, _, phi_lo, phi_hi = fabric_terms(c_n, qn[0], qn[1], qn[2], prm,
+                                                                sc.dpz)
     phi = min(max(phi0, phi_lo), phi_hi)
     psi = min(max(psi0, -phi), phi)
     m = 0.5 * (ttr[0] + ttr[1])
@@ -457,7 +458,7 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
     ttr[1] = ryy + (bulk - shear) * dexx + (bulk + shear) * deyy
     ttr[2] = rxy + shear * dgxy
     _initial_guess(c_n, (q0, bc, bs), prm, sc)
-    fab = fabric_terms(c_n, q0, bc, bs, prm)
+    fab = fabric_terms(c_n, q0, bc, bs, prm, sc.dpz)
     f_tr = yield_value(ttr[0], ttr[1], ttr[2], fab, prm[16], int(prm[17]), sc.theta)
     state[i, 0] = state_n[i, 0]
     state[i, 1] = c_n
@@ -477,7 +478,7 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
     r_tr = np.hypot(0.5 * (ttr[0] - ttr[1]), ttr[2])
     # The apex first, as tier 1: at c_apex, C⁻¹σ_tr at least as dilatant as the flow.
     c_apex = c_n * np.exp(p_tr / bulk)
-    spsi_iso, spsi_min = _dilatancy_range(c_apex, q0, bc, bs, prm)
+    spsi_iso, spsi_min = _dilatancy_range(c_apex, q0, bc, bs, prm, sc.dpz)
     face = False
     projected = False
     # (and a plastic trial at a stress too small to resolve — |σ_tr| < 1e-200 (K+G), where
