@@ -177,6 +177,22 @@ def test_huge_increment_is_solved_by_continuation_not_failed():
     assert np.abs(np.diff(stress, 2, axis=0)).max() < 0.1 * np.abs(np.diff(stress, axis=0)).max()
 
 
+def test_near_apex_return_with_strong_fabric_converges():
+    # Found by the random-increment test below (seed 98, mean-field balance law): from σ = 0
+    # with B/A = 0.6, a shear increment with R_tr/P_tr = 7.9 has a face solution (P = 0.21,
+    # found independently by least squares), but Newton with the condensed planes stalled in
+    # a valley of max|residual| ~ 0.04 from every start, so step cutting could not help
+    # (σ_n = 0 makes the problem scale-free). The exact-plane restart from the start solves it.
+    prm = model_params(**dict(ANISO, kappa_a=1.0, k_c=1.0, k_o=1.0))
+    state = np.array([1.0476474103810387, 0.7904773607342523, 0.8588591323369518,
+                      0.4769382956571223, 0.18437266512548453])
+    de = np.array([0.00074567845298994, -0.00086892364336945, 0.00016599870797043])
+    s, q, _, status = _update(prm, np.zeros(3), state, de, -0.0012590760644875692)
+    assert status == fm.STATUS_FACE
+    assert -0.5 * (s[0] + s[1]) == pytest.approx(0.2132, abs=1e-4)
+    assert _yield(prm.array(2), s, *q[1:]) == pytest.approx(0.0, abs=1e-12)
+
+
 def _wandering_increments(rng, n, steps, scale):
     """Random strain increments that keep most points yielding: a loading direction that
     wanders (random walk), a random volumetric ratio, sizes over three decades, random spin."""

@@ -144,7 +144,7 @@ def _lu_solve(lu, piv, b):
 
 # --------------------------------------------------------------------------- the local solve
 
-Scratch = namedtuple("Scratch", "ttr x theta pl yf res jac piv dx xt tt dth dpz fq dq ws")
+Scratch = namedtuple("Scratch", "ttr x theta pl yf res jac piv dx xt x0 dth dpz fq dq ws")
 """Per-range work arrays of the local solve (allocated once per range, never per point)."""
 
 
@@ -334,14 +334,18 @@ def _face_return(c_n, qn, prm, sc, s_ref):
 
     The planes move with the condensed step δθ_k + θ_σ·dσ + θ_p·dp; the line search
     backtracks on max |residual|. If it cannot progress (near the apex the planes are
-    ill-conditioned), the solve continues with the planes re-searched to their exact
-    maxima at every evaluation. On success ``sc.jac`` holds the LU factors of the Jacobian
+    ill-conditioned), the solve restarts from ``sc.x`` with the planes re-searched to their
+    exact maxima at every evaluation. On success ``sc.jac`` holds the LU factors of the Jacobian
     at the solution, ``sc.yf`` the yield/flow terms and ``sc.fq`` the fabric there.
     """
     x = sc.x
     xt = sc.xt
     dx = sc.dx
     pl = sc.pl
+    for i in range(N_X):
+        sc.x0[i] = x[i]
+    start0 = sc.theta[0]
+    start1 = sc.theta[1]
     search = False
     err, projected = _residual(x, c_n, qn, prm, search, sc, s_ref)
     err_prev = np.inf
@@ -394,10 +398,15 @@ def _face_return(c_n, qn, prm, sc, s_ref):
             err_prev = err
             err = err_t
         elif not search:
+            # Restart from the start: where the condensed planes lead it astray, the iterate
+            # reached can lie in a valley of the residual that exact planes do not leave.
             search = True
-            sc.theta[0] = theta0
-            sc.theta[1] = theta1
+            for i in range(N_X):
+                x[i] = sc.x0[i]
+            sc.theta[0] = start0
+            sc.theta[1] = start1
             err, projected = _residual(x, c_n, qn, prm, search, sc, s_ref)
+            err_prev = np.inf
         else:
             return False, False
     return False, False
