@@ -259,9 +259,10 @@ def _dilatancy_range(c, a, bc, bs, prm, dpz):
 
 
 @njit(cache=True, error_model="numpy")
-def _initial_guess(c_n, qn, prm, sc):
-    """Tier 1's closed-form coaxial return with the isotropic part of φ(θ), ψ(θ) at c_n, the
-    fabric at its start value, and the planes at tier 1's θ = α ± (π/4 - φ/2)."""
+def _initial_guess(c_n, qn, prm, sc, planes):
+    """Tier 1's closed-form coaxial return with the isotropic part of φ(θ), ψ(θ) at c_n and
+    the fabric at its start value; with ``planes`` also the planes at tier 1's
+    θ = α ± (π/4 - φ/2)."""
     bulk = prm[0]
     shear = prm[1]
     ttr = sc.ttr
@@ -291,16 +292,18 @@ def _initial_guess(c_n, qn, prm, sc):
     x[5] = qn[0]
     x[6] = qn[1]
     x[7] = qn[2]
-    alpha = 0.5 * np.arctan2(sa, ca)
-    sc.theta[0] = alpha + 0.25 * np.pi - 0.5 * phi
-    sc.theta[1] = alpha - 0.25 * np.pi + 0.5 * phi
+    if planes:
+        alpha = 0.5 * np.arctan2(sa, ca)
+        sc.theta[0] = alpha + 0.25 * np.pi - 0.5 * phi
+        sc.theta[1] = alpha - 0.25 * np.pi + 0.5 * phi
 
 
 @njit(cache=True, error_model="numpy")
 def _cutting_plane_guess(c_n, qn, fab, prm, sc):
     """One cutting-plane step from σ_tr (planes at their maxima from the elastic check):
     Δγ = f_tr / (∂f/∂σ · C N), σ = σ_tr - Δγ C N, c = c_n exp(-Δγ tr N), fabric at its start
-    value — first order in the step, so small increments start O(Δε²) from the solution."""
+    value — first order in the step, so small increments start O(Δε²) from the solution.
+    False (``sc.x`` untouched) where the step is undefined (∂f/∂σ · C N <= 0)."""
     bulk = prm[0]
     shear = prm[1]
     ttr = sc.ttr
@@ -315,7 +318,7 @@ def _cutting_plane_guess(c_n, qn, fab, prm, sc):
     cn2 = shear * n2
     den = yf[YF_FS] * cn0 + yf[YF_FS + 1] * cn1 + yf[YF_FS + 2] * cn2
     if not den > 0.0:
-        return
+        return False
     dgam = yf[YF_F] / den
     x[0] = ttr[0] - dgam * cn0
     x[1] = ttr[1] - dgam * cn1
@@ -325,6 +328,7 @@ def _cutting_plane_guess(c_n, qn, fab, prm, sc):
     x[5] = qn[0]
     x[6] = qn[1]
     x[7] = qn[2]
+    return True
 
 
 @njit(cache=True, error_model="numpy")
@@ -429,7 +433,7 @@ def _continuation_return(rotated, c_n, qn, prm, sc):
             ttr[j] = rotated[j] + t * (full[j] - rotated[j])
         s_ref = np.hypot(0.5 * (ttr[0] + ttr[1]), np.hypot(0.5 * (ttr[0] - ttr[1]), ttr[2]))
         if k == 1:
-            _initial_guess(c_n, qn, prm, sc)
+            _initial_guess(c_n, qn, prm, sc, True)
         face, projected = _face_return(c_n, qn, prm, sc, s_ref)
         if not face:
             break
@@ -466,9 +470,11 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
     ttr[0] = rxx + (bulk + shear) * dexx + (bulk - shear) * deyy
     ttr[1] = ryy + (bulk - shear) * dexx + (bulk + shear) * deyy
     ttr[2] = rxy + shear * dgxy
-    _initial_guess(c_n, (q0, bc, bs), prm, sc)
+    n_search = int(prm[17])
+    if n_search == 0:        # the tier-1 planes are the plane search's warm start
+        _initial_guess(c_n, (q0, bc, bs), prm, sc, True)
     fab = fabric_terms(c_n, q0, bc, bs, prm, sc.dpz)
-    f_tr = yield_value(ttr[0], ttr[1], ttr[2], fab, prm[16], int(prm[17]), sc.theta)
+    f_tr = yield_value(ttr[0], ttr[1], ttr[2], fab, prm[16], n_search, sc.theta)
     state[i, 0] = state_n[i, 0]
     state[i, 1] = c_n
     state[i, 2] = q0
@@ -485,30 +491,35 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
     qs = (q0, bc, bs)
     p_tr = -0.5 * (ttr[0] + ttr[1])
     r_tr = np.hypot(0.5 * (ttr[0] - ttr[1]), ttr[2])
-    # The apex first, as tier 1: at c_apex, C⁻¹σ_tr at least as dilatant as the flow.
+    # The apex first, as tier 1: at c_apex, C⁻¹σ_tr at least as dilatant as the flow (only
+    # possible where G P_tr <= K R_tr, as |sin ψ| < 1).
     c_apex = c_n * np.exp(p_tr / bulk)
-    spsi_iso, spsi_min = _dilatancy_range(c_apex, q0, bc, bs, prm, sc.dpz)
     face = False
     projected = False
     # (and a plastic trial at a stress too small to resolve — |σ_tr| < 1e-200 (K+G), where
     # Newton's arithmetic underflows — is σ = 0 to that accuracy)
-    apex = shear * p_tr + bulk * spsi_iso * r_tr <= 0.0 or s_ref < 1e-200 * (bulk + shear)
+    apex = s_ref < 1e-200 * (bulk + shear)
+    if not apex and shear * p_tr <= bulk * r_tr:
+        spsi_iso, _ = _dilatancy_range(c_apex, q0, bc, bs, prm, sc.dpz)
+        apex = shear * p_tr + bulk * spsi_iso * r_tr <= 0.0
     if not apex:
         # Near the surface (the common case in a converging global iteration) one cutting-
         # plane step from σ_tr is the better start; otherwise, or if that solve fails,
         # tier 1's coaxial return.
         near = f_tr <= CUTTING_PLANE_RANGE * s_ref
-        if near:
-            _cutting_plane_guess(c_n, qs, fab, prm, sc)
+        if not (near and _cutting_plane_guess(c_n, qs, fab, prm, sc)):
+            _initial_guess(c_n, qs, prm, sc, False)
         face, projected = _face_return(c_n, qs, prm, sc, s_ref)
         if near and not face:
-            _initial_guess(c_n, qs, prm, sc)
+            _initial_guess(c_n, qs, prm, sc, True)
             face, projected = _face_return(c_n, qs, prm, sc, s_ref)
         if not face:
             face, projected = _continuation_return((rxx, ryy, rxy), c_n, qs, prm, sc)
         # No face point found: the material separates if some plane's flow is less
         # dilatant than C⁻¹σ_tr; otherwise the local solve failed.
-        apex = not face and shear * p_tr + bulk * spsi_min * r_tr <= 0.0
+        if not face:
+            _, spsi_min = _dilatancy_range(c_apex, q0, bc, bs, prm, sc.dpz)
+            apex = shear * p_tr + bulk * spsi_min * r_tr <= 0.0
     x = sc.x
     if face:
         for j in range(3):
