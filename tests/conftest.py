@@ -1,9 +1,14 @@
-"""Shared test helpers."""
+"""Shared test helpers: model parameters and updates, small prepared DEM packings."""
+import numba
 import numpy as np
 import pytest
 
-from contfab.models import tiers
+from contfab.models import slip_planes, tiers
 from contfab.params import Params
+from dem.contact_law import ContactLaw
+from dem.integrator import dynamics
+from dem.particles import parse_radii, sample_radii
+from dem.prepare import compress_to_pressure, random_gas
 
 TIER1 = dict(phi_star_deg=25.0, dphi_dc_deg=60.0, dpsi_dc_deg=80.0, c_star=0.81)
 """Tier-1 values tier 2 reads (c-terms and clamps); a0 = φ*, b0 = 0 reduce tier 2 to tier 1."""
@@ -34,16 +39,14 @@ def stress_at(p, r, alpha):
     return np.array([-p + r * np.cos(2 * alpha), -p - r * np.cos(2 * alpha), r * np.sin(2 * alpha)])
 
 
-# --------------------------------------------------------------- DEM fixtures
-"""Shared DEM fixtures: small prepared packings, made once per test session."""
-import numba
-import numpy as np
-import pytest
+def fabric_terms(prm, c, a, bc, bs):
+    """slip_planes.fabric_terms of one state (its Jacobian built here)."""
+    dpz = np.empty((slip_planes.N_P, 4))
+    slip_planes.fabric_terms_jacobian(prm, dpz)
+    return slip_planes.fabric_terms(c, a, bc, bs, prm, dpz)
 
-from dem.contact_law import ContactLaw
-from dem.integrator import dynamics
-from dem.particles import parse_radii, sample_radii
-from dem.prepare import compress_to_pressure, random_gas
+
+# --------------------------------------------------------------- DEM fixtures
 
 
 # The machine is shared: an OpenMP barrier with a descheduled second thread costs
