@@ -171,7 +171,7 @@ def pair_forces(h, L, s, v, omega, radius, mass, pair_ij, pair_shift, pair_hist,
     part = np.zeros((max(nchunk, 1), NPAIR_SUMS))
     h00, h01, h10, h11 = h[0, 0], h[0, 1], h[1, 0], h[1, 1]
     for c in prange(nchunk):
-        acc = np.zeros(NPAIR_SUMS)
+        a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = a8 = a9 = 0.0
         for q in range(c * CHUNK, min(n_pairs, (c + 1) * CHUNK)):
             i, j = pair_ij[q, 0], pair_ij[q, 1]
             ds0 = s[j, 0] + pair_shift[q, 0] - s[i, 0]
@@ -185,10 +185,10 @@ def pair_forces(h, L, s, v, omega, radius, mass, pair_ij, pair_shift, pair_hist,
                 if pair_hist[q, 3] != 0.0:
                     # the contact opened: its stored tangential energy is lost, and the
                     # damping force does its work down to δ = 0
-                    acc[7] -= 0.5 * pair_hist[q, 2] * pair_hist[q, 3]
-                    acc[8] += 0.5 * kt * pair_hist[q, 0] ** 2
+                    a7 -= 0.5 * pair_hist[q, 2] * pair_hist[q, 3]
+                    a8 += 0.5 * kt * pair_hist[q, 0] ** 2
                     reff = ri * rj / rs
-                    acc[9] += 0.5 * kt * reff * reff * pair_hist[q, 1] ** 2
+                    a9 += 0.5 * kt * reff * reff * pair_hist[q, 1] ** 2
                     for a in range(4):
                         pair_hist[q, a] = 0.0
                 pair_f[q, 0] = 0.0
@@ -221,19 +221,20 @@ def pair_forces(h, L, s, v, omega, radius, mass, pair_ij, pair_shift, pair_hist,
             pair_f[q, 1] = fy
             pair_f[q, 2] = li * ft + mr
             pair_f[q, 3] = lj * ft - mr
-            acc[0] += fx * lx
-            acc[1] += fy * ly
-            acc[2] += 0.5 * (fx * ly + fy * lx)
+            a0 += fx * lx
+            a1 += fy * ly
+            a2 += 0.5 * (fx * ly + fy * lx)
             ax = kn * nx * nx + kt * tx * tx
             ay = kn * ny * ny + kt * ty * ty
-            acc[3] += ax * lx * lx
-            acc[4] += ay * ly * ly
-            acc[5] += ax * ly * ly
-            acc[6] += ay * lx * lx
-            acc[7] += dd
-            acc[8] += dfr
-            acc[9] += drl
-        part[c, :] = acc
+            a3 += ax * lx * lx
+            a4 += ay * ly * ly
+            a5 += ax * ly * ly
+            a6 += ay * lx * lx
+            a7 += dd
+            a8 += dfr
+            a9 += drl
+        part[c, 0], part[c, 1], part[c, 2], part[c, 3], part[c, 4] = a0, a1, a2, a3, a4
+        part[c, 5], part[c, 6], part[c, 7], part[c, 8], part[c, 9] = a5, a6, a7, a8, a9
     out = np.zeros(NPAIR_SUMS)
     for c in range(nchunk):
         out += part[c]
