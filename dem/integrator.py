@@ -55,6 +55,10 @@ from dem.servo import L_MAX_FACTOR, servo_rate, time_constant
 from dem.state import D_DAMP, D_FRIC, D_ROLL, EXX, EXY, EYY, TAU, TIME, WORK, State
 
 CHUNK = 256
+FASTMATH = {"contract", "reassoc", "nsz"}
+"""LLVM flags of the pass kernels: fused multiply-add and reordered sums (same code for
+every thread count, so parallel runs stay bitwise equal to serial ones); no nnan/ninf, so
+the non-finite check stays exact (ENGINEERING.md)."""
 Z_MAX = 6
 DT_FRACTION = 0.1
 """Default dt in units of sqrt(m_min/kn)."""
@@ -148,7 +152,7 @@ def pair_constants(pair_ij, n_pairs, radius, mass, kn, beta):
 NPAIR_SUMS = 10  # sxx, syy, sxy, Mxx, Myy, Mxy, Myx, d_damp, d_fric, d_roll
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=FASTMATH)
 def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair_hist, pair_f,
                 n_pairs, kn, kt, mu, mu_roll, dt):
     """Step 5: contact forces of every listed pair; returns the summed (NPAIR_SUMS,) terms.
@@ -164,7 +168,8 @@ def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair
     for c in prange(nchunk):
         a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = a8 = a9 = 0.0
         for q in range(c * CHUNK, min(n_pairs, (c + 1) * CHUNK)):
-            i, j = pair_ij[q, 0], pair_ij[q, 1]
+            # unsigned: indexing without the negative-index wraparound test
+            i, j = np.uint64(pair_ij[q, 0]), np.uint64(pair_ij[q, 1])
             ds0 = s[j, 0] + pair_shift[q, 0] - s[i, 0]
             ds1 = s[j, 1] + pair_shift[q, 1] - s[i, 1]
             lx = h00 * ds0 + h01 * ds1
@@ -235,7 +240,7 @@ def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair
 NDISC_SUMS = 5  # Σ m v'x², Σ m v'y², Σ m v'x v'y, non-finite count, max displacement²
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=FASTMATH)
 def disc_pass(pair_f, inc_ptr, inc, force, torque, v, omega, s, s_ref, mass, inv_mass,
               inv_inertia, L_end, L_next, h_next, hmid_inv, half_dt, dt, gather, drift):
     """One pass over the discs: steps 6 and 2–3, fused across two consecutive steps.
