@@ -1,0 +1,23 @@
+"""A linear isotropic elastic material behind the update contract, for solver tests only.
+
+σ_{n+1} = σ_n + D Δe with D the 2D isotropic stiffness (contfab.tensors); the state
+is carried unchanged, the status is 0 (elastic) everywhere.
+"""
+from types import SimpleNamespace
+
+import numpy as np
+
+from contfab.tensors import isotropic_stiffness
+
+
+class Elastic:
+    state_names = ("gp",)
+
+    def __init__(self, bulk=2.0, shear=1.0):
+        self.d = isotropic_stiffness(bulk, shear)
+
+    def update(self, stress_n, state_n, dstrain, dspin):
+        n = len(stress_n)
+        return SimpleNamespace(stress=stress_n + dstrain @ self.d.T, state=state_n.copy(),
+                               tangent=np.broadcast_to(self.d, (n, 3, 3)).copy(),
+                               status=np.zeros(n, dtype=np.int8))
