@@ -21,3 +21,19 @@ class Elastic:
         return SimpleNamespace(stress=stress_n + dstrain @ self.d.T, state=state_n.copy(),
                                tangent=np.broadcast_to(self.d, (n, 3, 3)).copy(),
                                status=np.zeros(n, dtype=np.int8))
+
+
+class Brittle(Elastic):
+    """Elastic until |strain| exceeds ``limit`` anywhere: those points report status -1."""
+
+    def __init__(self, limit, **kw):
+        super().__init__(**kw)
+        self.limit = limit
+
+    def update(self, stress_n, state_n, dstrain, dspin):
+        res = super().update(stress_n, state_n, dstrain, dspin)
+        strain = np.linalg.solve(self.d, res.stress.T).T
+        bad = np.abs(strain).max(axis=1) > self.limit
+        res.stress[bad] = stress_n[bad]
+        res.status[bad] = -1
+        return res

@@ -199,10 +199,10 @@ class Solver:
             trial, residuals, reason = self._newton(stage, system, u_start, t + dt)
             if trial is None:
                 attempts.append({"t": t + dt, "dt": dt, "reason": reason, "residuals": residuals})
-                dt *= self.options.cut
-                if dt < stage.dt_min:
+                if dt <= stage.dt_min * (1 + 1e-9):
                     raise ConvergenceError(self._failure_message(stage, attempts), self.committed,
                                            attempts)
+                dt = max(dt * self.options.cut, stage.dt_min)
                 continue
             self.committed = trial
             t += dt
@@ -256,8 +256,8 @@ class Solver:
         last = attempts[-1]
         seq = ", ".join(f"{x:.2e}" for x in last["residuals"]) or "none"
         return (f"stage {stage.name!r}: no converged step beyond t = {self.committed.t:.6g} "
-                f"(step cut {len(attempts)} times down to dt = {last['dt']:.3g} < dt_min = "
-                f"{stage.dt_min:g}); last attempt: {last['reason']}; relative residuals [{seq}]")
+                f"(step cut {len(attempts)} times down to the minimum "
+                f"dt = {stage.dt_min:g}); last attempt: {last['reason']}; relative residuals [{seq}]")
 
     def reactions(self, dofs: np.ndarray) -> float:
         """Sum of the committed residual over ``dofs``: the support force on the body."""
