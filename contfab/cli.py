@@ -38,8 +38,50 @@ def _run_paths(args) -> None:
                   f"{'; stress-controlled ' + sig if sig else ''}{'; until ' + until if until else ''}")
 
 
+# --------------------------------------------------------------------------- case
+
+def _add_case(p: argparse.ArgumentParser) -> None:
+    p.add_argument("name", nargs="?", help="a case of cases/ (omit to list them)")
+    p.add_argument("args", nargs=argparse.REMAINDER,
+                   help="the case's own options (--fast, --json, --out DIR, ...; see --help)")
+
+
+def _run_case(args) -> int:
+    from contfab import cases
+
+    if args.name is None:
+        for name in cases.case_names():
+            print(f"{name:24s} {cases.load_case(name).DESCRIPTION.splitlines()[0]}")
+        return 0
+    return cases.main(cases.load_case(args.name), args.args, prog=f"contfab case {args.name}")
+
+
+# --------------------------------------------------------------------------- bench
+
+BENCHES = {
+    "fem": "contfab.bench.fem",
+}
+
+
+def _add_bench(p: argparse.ArgumentParser) -> None:
+    p.add_argument("name", choices=sorted(BENCHES), help="which benchmark")
+    p.add_argument("--json", action="store_true", help="print the figures as one JSON object")
+    p.add_argument("--repeats", type=int, default=3, help="timing repeats (median)")
+
+
+def _run_bench(args) -> None:
+    import importlib
+
+    from contfab.bench import print_figures
+
+    figures = importlib.import_module(BENCHES[args.name]).run(args)
+    print_figures(f"contfab bench {args.name}", figures, args.json)
+
+
 COMMANDS = {
     "paths": (_add_paths, _run_paths, "list the standard loading paths, or show one"),
+    "case": (_add_case, _run_case, "run a boundary-value case of cases/ (or list them)"),
+    "bench": (_add_bench, _run_bench, "run a benchmark and print its figures"),
 }
 
 
@@ -54,11 +96,11 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        COMMANDS[args.command][1](args)
+        status = COMMANDS[args.command][1](args)
     except (ValueError, FileNotFoundError) as exc:
         print(f"contfab {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    return 0
+    return status or 0
 
 
 if __name__ == "__main__":

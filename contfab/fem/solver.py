@@ -139,7 +139,11 @@ class StepRecord:
 
 
 class ConstrainedSystem:
-    """Solves K δu = -r with δu prescribed on constrained DOFs, reusing the CSR pattern."""
+    """Solves K δu = -r with δu prescribed on constrained DOFs, reusing the CSR pattern.
+
+    SuperLU with the minimum-degree ordering of Kᵀ + K (the FE matrix is structurally
+    symmetric): 3-5x faster than the default COLAMD here (0.23 s vs 1.0 s at 54k DOFs).
+    """
 
     def __init__(self, disc: Discretization, fixed: np.ndarray):
         n = disc.ndofs
@@ -160,8 +164,15 @@ class ConstrainedSystem:
         kfc = sp.csr_matrix((k.data[sel], ind, ptr), shape=shape)
         du = np.zeros(len(r))
         du[self.fixed] = du_fixed
-        du[self.free] = spla.splu(kff).solve(-r[self.free] - kfc @ du_fixed)
+        lu = spla.splu(kff, permc_spec="MMD_AT_PLUS_A")
+        du[self.free] = lu.solve(-r[self.free] - kfc @ du_fixed)
         return du
+
+
+def norm(x: np.ndarray) -> float:
+    """Euclidean norm without BLAS: a threaded OpenBLAS dot on a loaded 2-core machine
+    took 12 ms for 54k entries (vs 8 µs single-threaded), more than an assembly."""
+    return float(np.sqrt(np.sum(x * x)))
 
 
 class Solver:
@@ -232,8 +243,8 @@ class Solver:
                 if failed:
                     return None, residuals, f"constitutive update failed at {failed} points"
                 r = disc.internal_force(res.stress) - f_ext
-                ref = max(np.linalg.norm(f_ext), np.linalg.norm(r[system.fixed])) or 1.0
-                rel = float(np.linalg.norm(r[system.free]) / ref)
+                ref = max(norm(f_ext), norm(r[system.fixed])) or 1.0
+                rel = norm(r[system.free]) / ref
                 residuals.append(rel)
                 if not np.isfinite(rel) or rel > opt.diverge:
                     return None, residuals, f"residual diverged ({rel:.3g})"
