@@ -9,7 +9,10 @@ Small-strain kinematics in Voigt form with engineering shear (DESIGN §2,
 and with the quadrature weight w (reference weight × |det J|)
 
     f_int = Σ_e Σ_q w Bᵀ σ                   (internal force, tension-positive σ)
-    K     = Σ_e Σ_q w Bᵀ D B,  D = ∂σ/∂e     (non-symmetric when the model's is)
+    K     = Σ_e Σ_q w Bᵀ (D B + g W),        D = ∂σ/∂e, g = ∂σ/∂ω
+
+(non-symmetric when the model's D is, and whenever g ≠ 0: the update rotates the
+stress by the spin increment, so σ depends on ω too).
 
 The model is never called from here: the solver runs the constitutive update once
 per Newton iteration over all points and passes stress (n, 3) and tangent
@@ -71,11 +74,16 @@ class Discretization:
         _force_kernel(self.bw, self.dofs, self.weights, _points(stress, self.npoints, (3,)), f)
         return f
 
-    def tangent(self, tangent: np.ndarray) -> sp.csr_matrix:
-        """K = Σ w Bᵀ D B for a tangent array (npoints, 3, 3), as a CSR matrix."""
+    def tangent(self, tangent: np.ndarray, spin_tangent: np.ndarray | None = None) -> sp.csr_matrix:
+        """K = Σ w Bᵀ (D B + g W) as a CSR matrix.
+
+        ``tangent`` D = ∂σ/∂e (npoints, 3, 3); ``spin_tangent`` g = ∂σ/∂ω (npoints, 3),
+        the stress's dependence on the spin increment (zero if omitted).
+        """
         data = np.zeros(len(self.indices))
+        g = np.zeros((self.npoints, 3)) if spin_tangent is None else spin_tangent
         _tangent_kernel(self.bw, self.weights, _points(tangent, self.npoints, (3, 3)),
-                        self.positions, data)
+                        _points(g, self.npoints, (3,)), self.positions, data)
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.ndofs, self.ndofs))
 
     def element_mean(self, values: np.ndarray) -> np.ndarray:
@@ -146,7 +154,7 @@ def _force_kernel(bw, dofs, weights, stress, f):
 
 
 @njit(cache=True)
-def _tangent_kernel(bw, weights, tangent, positions, data):
+def _tangent_kernel(bw, weights, tangent, spin_tangent, positions, data):
     ne, nq, _, nloc = bw.shape
     db = np.empty((3, nloc))
     for e in range(ne):
@@ -157,7 +165,8 @@ def _tangent_kernel(bw, weights, tangent, positions, data):
                 for j in range(nloc):
                     db[a, j] = w * (tangent[k, a, 0] * bw[e, q, 0, j]
                                     + tangent[k, a, 1] * bw[e, q, 1, j]
-                                    + tangent[k, a, 2] * bw[e, q, 2, j])
+                                    + tangent[k, a, 2] * bw[e, q, 2, j]
+                                    + spin_tangent[k, a] * bw[e, q, 3, j])
             for i in range(nloc):
                 b0 = bw[e, q, 0, i]
                 b1 = bw[e, q, 1, i]
