@@ -56,17 +56,112 @@ def _run_case(args) -> int:
     return cases.main(cases.load_case(args.name), args.args, prog=f"contfab case {args.name}")
 
 
+# --------------------------------------------------------------------------- dem
+
+def _dem_settings_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--n", type=int, default=1000, help="number of discs (default 1000)")
+    p.add_argument("--seed", type=int, default=0, help="random seed of the sample")
+    p.add_argument("--radii", default="uniform:0.2",
+                   help="'uniform:W' (diameters in [1-W, 1+W]) or 'bidisperse:Q:F' (radius ratio "
+                        "Q, number fraction F of small discs); default uniform:0.2")
+    p.add_argument("--mu", type=float, default=0.5, help="test friction (default 0.5)")
+    p.add_argument("--mu-prep", type=float, default=None,
+                   help="preparation friction (default: --mu; 0 gives a dense sample)")
+    p.add_argument("--kappa", type=float, default=1e4, help="stiffness number kn/P0 (default 1e4)")
+    p.add_argument("--inertial", type=float, default=1e-3,
+                   help="inertial number I setting the reference strain rate (default 1e-3)")
+    p.add_argument("--e", type=float, default=0.5, help="restitution coefficient, (0, 1]")
+    p.add_argument("--kt-ratio", type=float, default=0.5, help="kt/kn (default 0.5)")
+    p.add_argument("--mu-roll", type=float, default=0.0, help="rolling resistance (default 0)")
+    p.add_argument("--dt-fraction", type=float, default=0.1,
+                   help="time step in units of sqrt(m_min/kn) (default 0.1)")
+    p.add_argument("--threads", type=int, default=1, help="numba threads (default 1)")
+
+
+def _dem_settings(args):
+    from dem.job import Settings
+
+    if args.threads < 1:
+        raise ValueError(f"--threads {args.threads} out of range; accepted >= 1")
+    import numba
+    numba.set_num_threads(min(args.threads, numba.config.NUMBA_NUM_THREADS))
+    return Settings(n=args.n, seed=args.seed, radii=args.radii, kappa=args.kappa, mu=args.mu,
+                    mu_prep=args.mu_prep, inertial=args.inertial, e=args.e,
+                    kt_ratio=args.kt_ratio, mu_roll=args.mu_roll, dt_fraction=args.dt_fraction,
+                    checkpoint_every=getattr(args, "checkpoint_every", 10))
+
+
+def _add_dem(p: argparse.ArgumentParser) -> None:
+    sub = p.add_subparsers(dest="dem_command", required=True)
+    run = sub.add_parser("run", help="run a loading path on a DEM sample",
+                         description="Prepare a sample (or read one with --resume) and run a "
+                                     "loading path on it; writes history.csv/.json, "
+                                     "checkpoints and plots into --out.")
+    run.add_argument("path", help="a standard path name (see 'contfab paths') or a path file")
+    run.add_argument("--out", required=True, help="output directory")
+    run.add_argument("--checkpoint-every", type=int, default=10,
+                     help="write checkpoint.npz every this many history rows (0: only at the end)")
+    run.add_argument("--resume", default=None,
+                     help="a checkpoint: a prepared sample to start from, or a run to continue")
+    _dem_settings_args(run)
+    prep = sub.add_parser("prepare", help="prepare a sample and write it as a checkpoint",
+                          description="Compress a random gas to P0 with --mu-prep, relax it, "
+                                      "switch to --mu; write one checkpoint file.")
+    prep.add_argument("--out", required=True, help="checkpoint file to write (.npz)")
+    _dem_settings_args(prep)
+
+
+def _run_dem(args) -> None:
+    from dem.job import prepare_job, run_job
+
+    settings = _dem_settings(args)
+    if args.dem_command == "prepare":
+        print(f"prepared sample written to {prepare_job(settings, args.out)}")
+        return
+    written = run_job(args.path, settings, args.out, resume=args.resume)
+    for what, f in written.items():
+        print(f"{what:>14}: {f}")
+
+
+# --------------------------------------------------------------------------- point
+
+def _add_point(p: argparse.ArgumentParser) -> None:
+    from contfab.material_point import DEFAULT_INCREMENT
+
+    p.add_argument("path", help="a standard path name (see 'contfab paths') or a path file")
+    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("--params", default=None,
+                   help="parameter TOML file (default: the shipped contfab/data/default_params.toml)")
+    p.add_argument("--tier", type=int, default=None,
+                   help="model tier (default: the 'tier' of the parameter file)")
+    p.add_argument("--increment", type=float, default=DEFAULT_INCREMENT,
+                   help=f"increment Δτ_max in reference strain (default {DEFAULT_INCREMENT:g}); "
+                        f"halving it halves the integration error (first order)")
+
+
+def _run_point(args) -> None:
+    from contfab.point_job import run_job
+
+    written = run_job(args.path, args.out, args.params, args.tier, args.increment)
+    for what, f in written.items():
+        print(f"{what:>14}: {f}")
+
+
 # --------------------------------------------------------------------------- bench
 
 BENCHES = {
+    "dem": "contfab.bench.dem",
     "fem": "contfab.bench.fem",
+    "model": "contfab.bench.model",
+    "point": "contfab.bench.point",
 }
+"""Benchmark name -> module with ``run(args) -> dict`` of figures."""
 
 
 def _add_bench(p: argparse.ArgumentParser) -> None:
     p.add_argument("name", choices=sorted(BENCHES), help="which benchmark")
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object")
-    p.add_argument("--repeats", type=int, default=3, help="timing repeats (median)")
+    p.add_argument("--repeats", type=int, default=5, help="timed repeats per figure (median)")
 
 
 def _run_bench(args) -> None:
@@ -74,14 +169,19 @@ def _run_bench(args) -> None:
 
     from contfab.bench import print_figures
 
+    if args.repeats < 1:
+        raise ValueError(f"--repeats {args.repeats} out of range; accepted >= 1")
     figures = importlib.import_module(BENCHES[args.name]).run(args)
     print_figures(f"contfab bench {args.name}", figures, args.json)
 
 
 COMMANDS = {
     "paths": (_add_paths, _run_paths, "list the standard loading paths, or show one"),
+    "dem": (_add_dem, _run_dem, "the 2D disc-DEM RVE: prepare samples, run loading paths"),
     "case": (_add_case, _run_case, "run a boundary-value case of cases/ (or list them)"),
-    "bench": (_add_bench, _run_bench, "run a benchmark and print its figures"),
+    "bench": (_add_bench, _run_bench, "speed and memory benchmarks"),
+    "point": (_add_point, _run_point, "drive one material point along a loading path (CSV, "
+                                      "JSON, PNG)"),
 }
 
 

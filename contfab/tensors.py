@@ -52,15 +52,23 @@ def rotate(sxx, syy, sxy, angle):
 
 
 @njit(cache=True)
-def isotropic_stiffness(bulk, shear):
-    """3x3 Voigt matrix of the 2D isotropic law s = K tr(e) I + 2G dev(e).
+def isotropic_stiffness_into(bulk, shear, out):
+    """Write the 3x3 Voigt matrix of the 2D isotropic law s = K tr(e) I + 2G dev(e) into ``out``.
 
     With engineering shear: D = [[K+G, K-G, 0], [K-G, K+G, 0], [0, 0, G]].
+    Allocation-free form for kernels that fill a preallocated tangent.
     """
-    d = np.zeros((3, 3))
-    d[0, 0] = bulk + shear
-    d[1, 1] = bulk + shear
-    d[0, 1] = bulk - shear
-    d[1, 0] = bulk - shear
-    d[2, 2] = shear
+    out[:, :] = 0.0
+    out[0, 0] = bulk + shear
+    out[1, 1] = bulk + shear
+    out[0, 1] = bulk - shear
+    out[1, 0] = bulk - shear
+    out[2, 2] = shear
+
+
+@njit(cache=True)
+def isotropic_stiffness(bulk, shear):
+    """3x3 Voigt matrix of the 2D isotropic law (see :func:`isotropic_stiffness_into`)."""
+    d = np.empty((3, 3))
+    isotropic_stiffness_into(bulk, shear, d)
     return d

@@ -20,3 +20,13 @@ def test_csv_floats_round_trip(tmp_path):
     x = 0.1 + 0.2
     write_csv(tmp_path / "x.csv", ["x", "y"], [[x, None]])
     assert tmp_path.joinpath("x.csv").read_text().splitlines()[1] == f"{x!r},"
+
+
+def test_result_files_get_the_umask_mode(tmp_path):
+    import os
+    umask = os.umask(0o022)
+    try:
+        write_csv(tmp_path / "m.csv", ["a"], [[1.0]])
+    finally:
+        os.umask(umask)
+    assert (tmp_path / "m.csv").stat().st_mode & 0o777 == 0o644

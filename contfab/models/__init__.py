@@ -1,0 +1,1 @@
+"""Constitutive model tiers behind one update interface (:mod:`contfab.models.tiers`)."""

@@ -1,0 +1,537 @@
+r"""Tier 2: slip-plane yield, plane-wise flow, fabric hardening — the return mapping.
+
+Conventions (DESIGN §2): tension positive, Voigt stress (σxx, σyy, σxy), Voigt strain with
+engineering shear, spin increment Δω counter-clockwise. State columns (gp, c, A, Bc, Bs).
+Yield f and flow N: :mod:`contfab.models.slip_planes`; fabric laws:
+:mod:`contfab.models.fabric_law`.
+
+**Update** of one point, stress σ_n, state q_n, increments (Δε, Δω):
+
+1. Objective rotation by the exact angle Δω (as tiers 0/1): σ_n ← Q σ_n Qᵀ and the fabric
+   (Bc, Bs) turned by 2Δω, so a rigid rotation leaves A and B unchanged and turns θp by Δω.
+2. Elastic predictor σ_tr = σ_n + C Δε (C: the isotropic regularization K, G).
+3. f(σ_tr; q_n, c_n) <= 1e-10·|σ_tr|: elastic (status 0), tangent C. (The tolerance keeps a
+   state left on the surface by the previous step — to the local solve's 1e-12 — elastic
+   under a pure rotation, which is then exact.)
+4. Otherwise backward Euler on the face, fully implicit: unknowns x = (σ, Δγ, c, A, Bc, Bs),
+
+       σ - σ_tr + Δγ C N(σ, c, q) = 0,         f(σ, c, q) = 0,
+       c - c_n exp(-Δγ tr N) = 0,               q - Φ(q_n, Δγ N, c) = 0,
+
+   q = (A, Bc, Bs) the fabric at the END of the step and Φ the fabric law's step
+   (:func:`contfab.models.fabric_law.fabric_step`, from the rotated q_n); c is implicit
+   exactly as in tier 1 (which makes the reduction to tier 1 exact). Local Newton with the
+   analytic Jacobian (8x8; the slip planes condensed into it), from one cutting-plane step
+   (near the surface) or tier 1's closed-form coaxial return; backtracking on max |residual|.
+   The face solution is accepted when it converged with Δγ >= 0 and P > 0 (status 1).
+5. Apex (status 2): σ = 0, all of C⁻¹σ_tr plastic, c = c_n exp(P_tr/K), zero tangent
+   (as tier 1), when C⁻¹σ_tr dilates at least as much as the flow: tier 1's criterion
+   G P_tr + K sin ψ R_tr <= 0 with the isotropic part of ψ(θ) at c_apex (exactly tier 1's at
+   isotropy), or — when the face solve finds no point — with the least dilatant plane.
+   A face solve that fails outside that region is a failure (status -1).
+6. Δεp = C⁻¹(σ_tr - σ_{n+1}), gp += Δεp1 - Δεp2, and the fabric is Φ(q_n, Δεp, c_{n+1})
+   (admissible; equal to the q of the solve to its tolerance); if Φ had to project it onto
+   the admissible set, status 3.
+
+Backward Euler is first order in the step size (tests/test_fabric_model.py measures the
+order); every returned state lies on its own yield surface, f(σ_{n+1}; q_{n+1}, c_{n+1}) = 0.
+
+**Consistent tangent** ∂σ_{n+1}/∂Δε: with the converged Jacobian J of the residuals r(x; Δε),
+dx/dΔε = J⁻¹ [C; 0] (the only Δε-dependence is σ_tr), fabric coupling included; tested
+against central differences of the whole update (through the fabric's projection when it
+acts; not differentiated: an arc maximum sitting on its arc's end, τ = 0).
+
+**Failures** (status -1): non-finite input, c outside (0, 1), a face solve that does not
+converge outside the apex region, a non-finite result. The point returns its input stress
+and state and the elastic tangent; nothing non-finite is produced.
+
+**Parameter array** (:meth:`contfab.params.Params.array` (2): the ``[regularization]``,
+``[tier1]`` and ``[tier2]`` parts; angles in radians; 0-7 are tier 1's layout)::
+
+    [0] K  [1] G  [2] φ* (tier 1's; unused here: a0 plays its role)  [3] φ'  [4] ψ'  [5] c*
+    [6] φ_min  [7] φ_max
+    [8] a0  [9] a1 (per unit A)  [10] a2 (per unit B)  [11] a3
+    [12] b0  [13] b1  [14] b2  [15] b3
+    [16] β (softmax sharpness)  [17] n_search (plane-search grid points per arc)
+    [18] fabric law (0 balance, 1 relaxation)  [19] κa  [20] kc  [21] ko
+    [22] A_c = z_c/π  [23] b_c = B_c/A_c  [24] k (relaxation rate per unit Δγs)
+"""
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+from numba import njit, prange
+
+from contfab.models.cone import (STATUS_APEX, STATUS_ELASTIC, STATUS_FACE, STATUS_FAILED,
+                                 _finish, _inputs_finite)
+from contfab.models.fabric_law import N_WORK, fabric_step, rotate_fabric
+from contfab.models.slip_planes import (N_P, N_PL, N_YF, PL_DT, PL_TP, PL_TS, YF_F, YF_FP, YF_FS,
+                                        YF_N, YF_NP, YF_NS, YF_TR, YF_TRP, YF_TRS, fabric_terms,
+                                        fabric_terms_jacobian, yield_and_flow, yield_value)
+from contfab.tensors import isotropic_stiffness_into, rotate
+
+STATUS_PROJECTED = 3
+"""Plastic (face or apex) and the fabric had to be projected onto the admissible set
+(statuses 0, 1, 2, -1 as tiers 0/1: :mod:`contfab.models.cone`)."""
+
+N_PRM = 25
+N_X = 8
+"""Unknowns of the local solve: σ (3), Δγ, c, A, Bc, Bs."""
+YIELD_TOL = 1e-10
+"""Elastic check: f(σ_tr) <= YIELD_TOL · |σ_tr| is elastic."""
+NEWTON_MAXIT = 40
+NEWTON_TOL = 1e-12
+"""Local solve: max |residual| (stress residuals relative to |σ_tr|, c absolute)."""
+CUTTING_PLANE_RANGE = 0.1
+"""Local solve: trial states with f_tr <= this · |σ_tr| start from a cutting-plane step."""
+NEWTON_TOL_LAST = 1e-8
+"""Local solve: from max |residual| below this the Newton step is the last (no re-evaluation)."""
+PLANE_STEP_TOL = 1e-9
+"""Local solve: the planes' own Newton steps (radians) at convergence (values exact to ~δθ²)."""
+
+
+# --------------------------------------------------------------------------- small linear algebra
+
+@njit(cache=True, error_model="numpy")
+def _lu(a, piv):
+    """In-place LU with partial pivoting of the square ``a``; False if singular."""
+    n = a.shape[0]
+    for k in range(n):
+        p = k
+        big = abs(a[k, k])
+        for i in range(k + 1, n):
+            if abs(a[i, k]) > big:
+                big = abs(a[i, k])
+                p = i
+        piv[k] = p
+        if big == 0.0 or not np.isfinite(big):
+            return False
+        if p != k:
+            for j in range(n):
+                tmp = a[k, j]
+                a[k, j] = a[p, j]
+                a[p, j] = tmp
+        for i in range(k + 1, n):
+            a[i, k] /= a[k, k]
+            for j in range(k + 1, n):
+                a[i, j] -= a[i, k] * a[k, j]
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def _lu_solve(lu, piv, b):
+    """Solve in place with the factors of :func:`_lu`."""
+    n = lu.shape[0]
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            tmp = b[k]
+            b[k] = b[p]
+            b[p] = tmp
+    for i in range(n):
+        for j in range(i):
+            b[i] -= lu[i, j] * b[j]
+    for i in range(n - 1, -1, -1):
+        for j in range(i + 1, n):
+            b[i] -= lu[i, j] * b[j]
+        b[i] /= lu[i, i]
+
+
+# --------------------------------------------------------------------------- the local solve
+
+Scratch = namedtuple("Scratch", "ttr x theta pl yf res jac piv dx xt tt dth dpz fq dq ws")
+"""Per-range work arrays of the local solve (allocated once per range, never per point)."""
+
+
+@njit(cache=True)
+def _scratch():
+    return Scratch(np.empty(3), np.empty(N_X), np.empty(2), np.empty((2, N_PL)), np.empty(N_YF),
+                   np.empty(N_X), np.empty((N_X, N_X)), np.empty(N_X, dtype=np.int64),
+                   np.empty(N_X), np.empty(N_X), np.empty(2), np.empty(2), np.empty((N_P, 4)),
+                   np.empty(3), np.empty((4, 3)), np.empty(N_WORK))
+
+
+@njit(cache=True, error_model="numpy")
+def _residual(x, c_n, qn, prm, search, sc, s_ref):
+    """Residuals of the backward-Euler step at x = (σxx, σyy, σxy, Δγ, c, A, Bc, Bs) into
+    ``sc.res`` and their Jacobian into ``sc.jac`` (planes condensed: slip_planes.plane_terms):
+
+        (σ - σ_tr + Δγ C N)/|σ_tr|,  f/|σ_tr|,  c - c_n exp(-Δγ tr N),  q - Φ(q_n, Δγ N, c)
+
+    with f, N at (σ, c, q) and Φ the fabric law (from the rotated start fabric ``qn``).
+    ``sc.theta``: the planes; with ``search`` they are first moved to their exact maxima.
+    Returns (max |res| (inf outside the domain c > 0), whether Φ had to be projected).
+    """
+    bulk = prm[0]
+    shear = prm[1]
+    dgam = x[3]
+    c = x[4]
+    if not c > 0.0:
+        return np.inf, False
+    yf = sc.yf
+    fab = fabric_terms(c, x[5], x[6], x[7], prm)
+    yield_and_flow(x[0], x[1], x[2], fab, prm[16], search, 0, sc.theta, sc.pl, yf)
+    n0 = yf[YF_N]
+    n1 = yf[YF_N + 1]
+    n2 = yf[YF_N + 2]
+    projected = fabric_step(qn[0], qn[1], qn[2], dgam * n0, dgam * n1, dgam * n2, c,
+                            int(prm[18]), prm[19], prm[20], prm[21], prm[22], prm[23], prm[24],
+                            sc.fq, sc.dq, sc.ws)
+    cn0 = (bulk + shear) * n0 + (bulk - shear) * n1
+    cn1 = (bulk - shear) * n0 + (bulk + shear) * n1
+    cn2 = shear * n2
+    e = c_n * np.exp(-dgam * yf[YF_TR])
+    inv = 1.0 / s_ref
+    res = sc.res
+    jac = sc.jac
+    dq = sc.dq
+    ttr = sc.ttr
+    res[0] = (x[0] - ttr[0] + dgam * cn0) * inv
+    res[1] = (x[1] - ttr[1] + dgam * cn1) * inv
+    res[2] = (x[2] - ttr[2] + dgam * cn2) * inv
+    res[3] = yf[YF_F] * inv
+    res[4] = c - e
+    for i in range(3):
+        res[5 + i] = x[5 + i] - sc.fq[i]
+    # Columns σ (0-2): C ∂N/∂σ, ∂f/∂σ, ∂trN/∂σ, and Φ through Δεp = Δγ N.
+    for j in range(3):
+        ns0 = yf[YF_NS + j]
+        ns1 = yf[YF_NS + 3 + j]
+        ns2 = yf[YF_NS + 6 + j]
+        jac[0, j] = ((1.0 if j == 0 else 0.0) + dgam * ((bulk + shear) * ns0 + (bulk - shear) * ns1)) * inv
+        jac[1, j] = ((1.0 if j == 1 else 0.0) + dgam * ((bulk - shear) * ns0 + (bulk + shear) * ns1)) * inv
+        jac[2, j] = ((1.0 if j == 2 else 0.0) + dgam * shear * ns2) * inv
+        jac[3, j] = yf[YF_FS + j] * inv
+        jac[4, j] = e * dgam * yf[YF_TRS + j]
+        for i in range(3):
+            jac[5 + i, j] = -dgam * (dq[0, i] * ns0 + dq[1, i] * ns1 + dq[2, i] * ns2)
+    # Column Δγ (3).
+    jac[0, 3] = cn0 * inv
+    jac[1, 3] = cn1 * inv
+    jac[2, 3] = cn2 * inv
+    jac[3, 3] = 0.0
+    jac[4, 3] = e * yf[YF_TR]
+    for i in range(3):
+        jac[5 + i, 3] = -(dq[0, i] * n0 + dq[1, i] * n1 + dq[2, i] * n2)
+    # Columns z = (c, A, Bc, Bs) (4-7): through the angle coefficients p, ∂p/∂z = sc.dpz.
+    for z in range(4):
+        nz0 = 0.0
+        nz1 = 0.0
+        nz2 = 0.0
+        trz = 0.0
+        fz = 0.0
+        for j in range(N_P):
+            d = sc.dpz[j, z]
+            if d != 0.0:
+                nz0 += yf[YF_NP + j] * d
+                nz1 += yf[YF_NP + N_P + j] * d
+                nz2 += yf[YF_NP + 2 * N_P + j] * d
+                trz += yf[YF_TRP + j] * d
+                if j < 3:
+                    fz += yf[YF_FP + j] * d
+        jac[0, 4 + z] = dgam * ((bulk + shear) * nz0 + (bulk - shear) * nz1) * inv
+        jac[1, 4 + z] = dgam * ((bulk - shear) * nz0 + (bulk + shear) * nz1) * inv
+        jac[2, 4 + z] = dgam * shear * nz2 * inv
+        jac[3, 4 + z] = fz * inv
+        jac[4, 4 + z] = (1.0 if z == 0 else 0.0) + e * dgam * trz
+        for i in range(3):
+            jac[5 + i, 4 + z] = ((1.0 if z == i + 1 else 0.0)
+                                 - dgam * (dq[0, i] * nz0 + dq[1, i] * nz1 + dq[2, i] * nz2)
+                                 - (dq[3, i] if z == 0 else 0.0))
+    worst = 0.0
+    for i in range(N_X):
+        worst = max(worst, abs(res[i]))
+    return worst, projected
+
+
+@njit(cache=True, error_model="numpy")
+def _dilatancy_range(c, a, bc, bs, prm):
+    """(sin ψ̄, sin ψ_min) at c: the isotropic part of ψ(θ) and its smallest value over planes."""
+    phi0, pc, ps, psi0, qc, qs, _, _, phi_lo, phi_hi = fabric_terms(c, a, bc, bs, prm)
+    phi = min(max(phi0, phi_lo), phi_hi)
+    amp = np.hypot(qc, qs)
+    return np.sin(min(max(psi0, -phi), phi)), np.sin(max(psi0 - amp, -phi_hi))
+
+
+@njit(cache=True, error_model="numpy")
+def _initial_guess(c_n, qn, prm, sc):
+    """Tier 1's closed-form coaxial return with the isotropic part of φ(θ), ψ(θ) at c_n, the
+    fabric at its start value, and the planes at tier 1's θ = α ± (π/4 - φ/2)."""
+    bulk = prm[0]
+    shear = prm[1]
+    ttr = sc.ttr
+    x = sc.x
+    phi0, _, _, psi0, _, _, _, _, phi_lo, phi_hi = fabric_terms(c_n, qn[0], qn[1], qn[2], prm)
+    phi = min(max(phi0, phi_lo), phi_hi)
+    psi = min(max(psi0, -phi), phi)
+    m = 0.5 * (ttr[0] + ttr[1])
+    d = 0.5 * (ttr[0] - ttr[1])
+    r = np.hypot(d, ttr[2])
+    ca = d / r if r > 0.0 else 1.0
+    sa = ttr[2] / r if r > 0.0 else 0.0
+    sphi = np.sin(phi)
+    spsi = np.sin(psi)
+    dgam = max((r + sphi * m) / (shear + bulk * sphi * spsi), 0.0)   # m = -P
+    dgam = min(dgam, 0.5 * r / shear)
+    r1 = r - shear * dgam
+    m1 = m - bulk * spsi * dgam
+    x[0] = m1 + r1 * ca
+    x[1] = m1 - r1 * ca
+    x[2] = r1 * sa
+    # Same plastic strain with this tier's slip normalization: ε1 - ε2 = Δγ cos(φ - ψ̂).
+    psi_hat = np.arctan2(spsi * np.cos(phi), 1.0 - spsi * sphi)
+    x[3] = dgam / np.cos(phi - psi_hat)
+    x[4] = c_n * np.exp(-dgam * spsi)
+    x[5] = qn[0]
+    x[6] = qn[1]
+    x[7] = qn[2]
+    alpha = 0.5 * np.arctan2(sa, ca)
+    sc.theta[0] = alpha + 0.25 * np.pi - 0.5 * phi
+    sc.theta[1] = alpha - 0.25 * np.pi + 0.5 * phi
+
+
+@njit(cache=True, error_model="numpy")
+def _cutting_plane_guess(c_n, qn, fab, prm, sc):
+    """One cutting-plane step from σ_tr (planes at their maxima from the elastic check):
+    Δγ = f_tr / (∂f/∂σ · C N), σ = σ_tr - Δγ C N, c = c_n exp(-Δγ tr N), fabric at its start
+    value — first order in the step, so small increments start O(Δε²) from the solution."""
+    bulk = prm[0]
+    shear = prm[1]
+    ttr = sc.ttr
+    x = sc.x
+    yf = sc.yf
+    yield_and_flow(ttr[0], ttr[1], ttr[2], fab, prm[16], False, 0, sc.theta, sc.pl, yf)
+    n0 = yf[YF_N]
+    n1 = yf[YF_N + 1]
+    n2 = yf[YF_N + 2]
+    cn0 = (bulk + shear) * n0 + (bulk - shear) * n1
+    cn1 = (bulk - shear) * n0 + (bulk + shear) * n1
+    cn2 = shear * n2
+    den = yf[YF_FS] * cn0 + yf[YF_FS + 1] * cn1 + yf[YF_FS + 2] * cn2
+    if not den > 0.0:
+        return
+    dgam = yf[YF_F] / den
+    x[0] = ttr[0] - dgam * cn0
+    x[1] = ttr[1] - dgam * cn1
+    x[2] = ttr[2] - dgam * cn2
+    x[3] = dgam
+    x[4] = c_n * np.exp(-dgam * yf[YF_TR])
+    x[5] = qn[0]
+    x[6] = qn[1]
+    x[7] = qn[2]
+
+
+@njit(cache=True, error_model="numpy")
+def _face_return(c_n, qn, prm, sc, s_ref):
+    """Newton on the step's residuals from ``sc.x``: (converged to a valid face point,
+    fabric projected).
+
+    The planes move with the condensed step δθ_k + θ_σ·dσ + θ_p·dp; the line search
+    backtracks on max |residual|. If it cannot progress (near the apex the planes are
+    ill-conditioned), the solve continues with the planes re-searched to their exact
+    maxima at every evaluation. On success ``sc.jac`` holds the LU factors of the Jacobian
+    at the solution, ``sc.yf`` the yield/flow terms and ``sc.fq`` the fabric there.
+    """
+    x = sc.x
+    xt = sc.xt
+    dx = sc.dx
+    pl = sc.pl
+    search = False
+    err, projected = _residual(x, c_n, qn, prm, search, sc, s_ref)
+    err_prev = np.inf
+    for _ in range(NEWTON_MAXIT):
+        if not np.isfinite(err):
+            return False, False
+        if not _lu(sc.jac, sc.piv):
+            return False, False
+        if err <= NEWTON_TOL and max(abs(pl[0, PL_DT]), abs(pl[1, PL_DT])) <= PLANE_STEP_TOL:
+            p = -0.5 * (x[0] + x[1])
+            return x[3] >= 0.0 and p > 0.0, projected
+        for i in range(N_X):
+            dx[i] = -sc.res[i]
+        _lu_solve(sc.jac, sc.piv, dx)
+        if (err <= NEWTON_TOL_LAST and err <= 1e-2 * err_prev
+                and max(abs(pl[0, PL_DT]), abs(pl[1, PL_DT])) <= 1e-5):
+            # Quadratic convergence (the last step cut the residual 100-fold): this step
+            # leaves ~err² (< 1e-16); take it without another evaluation (the factors at x
+            # serve the tangent to ~err).
+            for i in range(N_X):
+                x[i] += dx[i]
+            p = -0.5 * (x[0] + x[1])
+            return x[3] >= 0.0 and p > 0.0, projected
+        for k in range(2):
+            d = pl[k, PL_DT] + pl[k, PL_TS] * dx[0] + pl[k, PL_TS + 1] * dx[1] \
+                + pl[k, PL_TS + 2] * dx[2]
+            for j in range(3):
+                for z in range(4):
+                    d += pl[k, PL_TP + j] * sc.dpz[j, z] * dx[4 + z]
+            sc.dth[k] = d
+        theta0 = sc.theta[0]
+        theta1 = sc.theta[1]
+        step = 1.0
+        accepted = False
+        for _ in range(30):
+            for i in range(N_X):
+                xt[i] = x[i] + step * dx[i]
+            sc.theta[0] = theta0 + step * sc.dth[0]
+            sc.theta[1] = theta1 + step * sc.dth[1]
+            err_t, projected = _residual(xt, c_n, qn, prm, search, sc, s_ref)
+            if err_t < err or err_t <= NEWTON_TOL:
+                accepted = True
+                break
+            step *= 0.5
+            if step < 0.1 and not search:
+                break
+        if accepted:
+            for i in range(N_X):
+                x[i] = xt[i]
+            err_prev = err
+            err = err_t
+        elif not search:
+            search = True
+            sc.theta[0] = theta0
+            sc.theta[1] = theta1
+            err, projected = _residual(x, c_n, qn, prm, search, sc, s_ref)
+        else:
+            return False, False
+    return False, False
+
+
+# --------------------------------------------------------------------------- one point
+
+@njit(cache=True, error_model="numpy")
+def _elastic_strain(sxx, syy, sxy, bulk, shear):
+    """C⁻¹σ (Voigt, engineering shear): tr = (σxx+σyy)/(2K), deviator /(2G), γ = σxy/G."""
+    vol = 0.25 * (sxx + syy) / bulk
+    dev = 0.25 * (sxx - syy) / shear
+    return vol + dev, vol - dev, sxy / shear
+
+
+@njit(cache=True, error_model="numpy")
+def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status, sc):
+    bulk = prm[0]
+    shear = prm[1]
+    c_n = state_n[i, 1]
+    if not (0.0 < c_n < 1.0):
+        status[i] = STATUS_FAILED
+        return
+    ttr = sc.ttr
+    rxx, ryy, rxy = rotate(stress_n[i, 0], stress_n[i, 1], stress_n[i, 2], dspin[i])
+    bc, bs = rotate_fabric(state_n[i, 3], state_n[i, 4], dspin[i])
+    q0 = state_n[i, 2]
+    dexx = dstrain[i, 0]
+    deyy = dstrain[i, 1]
+    dgxy = dstrain[i, 2]
+    ttr[0] = rxx + (bulk + shear) * dexx + (bulk - shear) * deyy
+    ttr[1] = ryy + (bulk - shear) * dexx + (bulk + shear) * deyy
+    ttr[2] = rxy + shear * dgxy
+    _initial_guess(c_n, (q0, bc, bs), prm, sc)
+    fab = fabric_terms(c_n, q0, bc, bs, prm)
+    f_tr = yield_value(ttr[0], ttr[1], ttr[2], fab, prm[16], int(prm[17]), sc.theta)
+    state[i, 0] = state_n[i, 0]
+    state[i, 1] = c_n
+    state[i, 2] = q0
+    state[i, 3] = bc
+    state[i, 4] = bs
+    s_ref = np.hypot(0.5 * (ttr[0] + ttr[1]), np.hypot(0.5 * (ttr[0] - ttr[1]), ttr[2]))
+    if f_tr <= YIELD_TOL * s_ref:
+        stress[i, 0] = ttr[0]
+        stress[i, 1] = ttr[1]
+        stress[i, 2] = ttr[2]
+        isotropic_stiffness_into(bulk, shear, tangent[i])
+        status[i] = STATUS_ELASTIC
+        return
+    qs = (q0, bc, bs)
+    p_tr = -0.5 * (ttr[0] + ttr[1])
+    r_tr = np.hypot(0.5 * (ttr[0] - ttr[1]), ttr[2])
+    # The apex first, as tier 1: at c_apex, C⁻¹σ_tr at least as dilatant as the flow.
+    c_apex = c_n * np.exp(p_tr / bulk)
+    spsi_iso, spsi_min = _dilatancy_range(c_apex, q0, bc, bs, prm)
+    face = False
+    projected = False
+    # (and a plastic trial at a stress too small to resolve — |σ_tr| < 1e-200 (K+G), where
+    # Newton's arithmetic underflows — is σ = 0 to that accuracy)
+    apex = shear * p_tr + bulk * spsi_iso * r_tr <= 0.0 or s_ref < 1e-200 * (bulk + shear)
+    if not apex:
+        # Near the surface (the common case in a converging global iteration) one cutting-
+        # plane step from σ_tr is the better start; otherwise, or if that solve fails,
+        # tier 1's coaxial return.
+        near = f_tr <= CUTTING_PLANE_RANGE * s_ref
+        if near:
+            _cutting_plane_guess(c_n, qs, fab, prm, sc)
+        face, projected = _face_return(c_n, qs, prm, sc, s_ref)
+        if near and not face:
+            _initial_guess(c_n, qs, prm, sc)
+            face, projected = _face_return(c_n, qs, prm, sc, s_ref)
+        # No face point found: the material separates if some plane's flow is less
+        # dilatant than C⁻¹σ_tr; otherwise the local solve failed.
+        apex = not face and shear * p_tr + bulk * spsi_min * r_tr <= 0.0
+    x = sc.x
+    if face:
+        for j in range(3):
+            stress[i, j] = x[j]
+        c1 = x[4]
+        # Δεp = C⁻¹(σ_tr - σ) (backward Euler's identity; = Δγ N at convergence), and the
+        # fabric law at the final (Δεp, c): the returned state satisfies both exactly.
+        pxx, pyy, pgg = _elastic_strain(ttr[0] - x[0], ttr[1] - x[1], ttr[2] - x[2], bulk,
+                                        shear)
+        projected = fabric_step(q0, bc, bs, pxx, pyy, pgg, c1, int(prm[18]), prm[19],
+                                prm[20], prm[21], prm[22], prm[23], prm[24], sc.fq, sc.dq,
+                                sc.ws)
+        # Tangent: solve J X = [C/s_ref; 0], column by column.
+        dx = sc.dx
+        for j in range(3):
+            for k in range(N_X):
+                dx[k] = 0.0
+            if j < 2:
+                dx[0] = (bulk + shear if j == 0 else bulk - shear) / s_ref
+                dx[1] = (bulk - shear if j == 0 else bulk + shear) / s_ref
+            else:
+                dx[2] = shear / s_ref
+            _lu_solve(sc.jac, sc.piv, dx)
+            for k in range(3):
+                tangent[i, k, j] = dx[k]
+        status[i] = STATUS_FACE
+    elif apex:
+        stress[i, :] = 0.0
+        tangent[i, :, :] = 0.0
+        pxx, pyy, pgg = _elastic_strain(ttr[0], ttr[1], ttr[2], bulk, shear)
+        c1 = c_apex
+        projected = fabric_step(q0, bc, bs, pxx, pyy, pgg, c1, int(prm[18]), prm[19], prm[20],
+                                prm[21], prm[22], prm[23], prm[24], sc.fq, sc.dq, sc.ws)
+        status[i] = STATUS_APEX
+    else:
+        status[i] = STATUS_FAILED
+        return
+    state[i, 0] = state_n[i, 0] + np.hypot(pxx - pyy, pgg)
+    state[i, 1] = c1
+    # Φ's (admissible) output; on the face it equals x[5:8] to the solve's tolerance.
+    state[i, 2] = sc.fq[0]
+    state[i, 3] = sc.fq[1]
+    state[i, 4] = sc.fq[2]
+    if projected:
+        status[i] = STATUS_PROJECTED
+
+
+@njit(cache=True, error_model="numpy")
+def _update_range(lo, hi, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status):
+    """Update points lo..hi-1 (scratch allocated once per range, never per point)."""
+    sc = _scratch()
+    fabric_terms_jacobian(prm, sc.dpz)
+    for i in range(lo, hi):
+        if _inputs_finite(stress_n, state_n, dstrain, dspin, i):
+            _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status, sc)
+        else:
+            status[i] = STATUS_FAILED
+        _finish(stress_n, state_n, stress, state, tangent, status, i, prm[0], prm[1])
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def update_points(stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status):
+    """Tier 2 update of every point, threads over chunks (layout of ``prm``: module doc)."""
+    n = stress_n.shape[0]
+    n_chunks = min(n, 64)
+    for chunk in prange(n_chunks):
+        _update_range(chunk * n // n_chunks, (chunk + 1) * n // n_chunks, stress_n, state_n,
+                      dstrain, dspin, prm, stress, state, tangent, status)

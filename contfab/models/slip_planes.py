@@ -1,0 +1,424 @@
+r"""Tier 2 yield function and flow over slip planes (seed 000 §5, DESIGN §4).
+
+Conventions: tension positive, Voigt stress (σxx, σyy, σxy), Voigt strain with engineering
+shear. A slip plane has normal n(θ) = (cos θ, sin θ) and tangent t(θ) = (-sin θ, cos θ);
+σn = n·σ·n, τ = t·σ·n. With m = (σxx+σyy)/2, R and the major principal direction α
+(σ1 = m + R along α): σn = m + R cos u, τ = -R sin u, u = 2(θ - α).
+
+**Friction and dilatancy per plane.** With (Bc, Bs) the fabric and c the packing fraction,
+
+    φ(θ) = a0 + φ'(c - c*) + a1 A + a2 B cos(2(θ - θp) + a3)      (seed eq. 1.8 + tier 1's c-term)
+    ψ(θ) = b0 + ψ'(c - c*) + b1 A + b2 B cos(2(θ - θp) + b3)
+
+clamped like tier 1 (φ to [φ_min, φ_max], then ψ to [-φ, φ]). B cos(2(θ-θp) + a3) =
+Bc' cos 2θ + Bs' sin 2θ with (Bc', Bs') the fabric rotated by -a3/2, so nothing is singular
+at B = 0. Carrying tier 1's c-term is what makes the reduction exact: with a2 = b2 = 0,
+a1 = b1 = 0, a0 = φ*, b0 = 0, every plane has tier 1's φ(c), ψ(c).
+
+**Yield.** h(θ) = |τ| + tan φ(θ) σn, f(σ) = max over θ (compression makes σn < 0). The planes
+split into two arcs by the sign of τ (u ∈ (0, π): τ < 0; u ∈ (-π, 0): τ > 0), the two
+conjugate slip families; h is smooth on each. We take the exact maximum h_k of each arc
+(a grid of ``n_search`` points per arc, then safeguarded Newton on ∂h/∂θ = 0) and
+
+    f = Σ_k w_k h_k,   w = softmax(β h_k / s),   s = sqrt(m² + R²),
+
+the softmax-weighted mean of the two arc maxima. It is exact where it must be: at
+isotropy the two maxima tie, w = (½, ½) and f = max h = (R - sin φ P)/cos φ — tier 1's yield
+function divided by cos φ, the same surface. Elsewhere f <= max h, short of it by at most
+0.28 s/β (measured in tests/test_slip_planes.py; β = 50: 0.6 % of s). f is positively
+homogeneous of degree 1 (a cone). A plain log-sum-exp over a θ grid would overestimate the
+max at isotropy by up to log(n)/β·s and break the reduction; this form does not.
+
+**Flow.** On plane θ with sign g = sign τ: N(θ) = g cos ψ̂ sym(t⊗n) + sin ψ̂ n⊗n, i.e.
+N = g cos ψ̂ ∂τ/∂σ + sin ψ̂ ∂σn/∂σ (trace sin ψ̂, Δε1 - Δε2 = 1 per unit slip), and the total
+flow is N = Σ_k w_k N(θ_k) with the yield's weights: coaxial at isotropy (the two conjugate
+planes weigh equally), one plane dominating under strong anisotropy (non-coaxial flow).
+
+ψ(θ) keeps tier 1's meaning — the dilatancy sin ψ = tr/(ε1 - ε2) (seed eq. 1.2) of the
+symmetric double slip on the planes θ and its conjugate. Averaging two conjugate planes at
+±(π/4 - φ/2) cancels part of their deviators, so a plane slip angle equal to ψ would give
+sin ψ_macro = sin ψ / cos(φ - ψ) (+6 % at φ = 30°, ψ = 10°). The plane's slip angle ψ̂ is
+therefore the one that reproduces ψ exactly:
+
+    tan ψ̂ = sin ψ cos φ / (1 - sin ψ sin φ)     (ψ̂ = 0 at ψ = 0, ψ̂ = φ at ψ = φ).
+
+**Derivatives** (for the local Newton and the consistent tangent), all analytic: the arc
+maxima obey the envelope theorem, ∂h_k/∂σ = ∂h/∂σ at fixed θ_k, and the planes move with
+∂θ_k/∂σ = -h_θσ / h_θθ; the softmax weights are differentiated in full.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+# The six angle coefficients p = (φ0, pc, ps, ψ0, qc, qs) of φ(θ) = φ0 + pc cos 2θ + ps sin 2θ
+# and ψ(θ) = ψ0 + qc cos 2θ + qs sin 2θ (:func:`fabric_terms`): c, A, Bc, Bs act only through
+# them, so derivatives are taken in p (row-major (3, 6) blocks for N).
+N_P = 6
+# Layout of one plane's terms (row of the ``pl`` scratch array): h, ∂h/∂σ, ∂h/∂p (the three
+# φ coefficients), ∂θ/∂σ, ∂θ/∂p, N, ∂N/∂θ, ∂N/∂p at fixed θ, sin ψ̂, its θ- and
+# p-derivatives, the plane's own Newton step.
+PL_H, PL_HS, PL_HP, PL_TS, PL_TP, PL_N, PL_NT, PL_NP, PL_SH, PL_SHT, PL_SHP, PL_DT = (
+    0, 1, 4, 7, 10, 13, 16, 19, 37, 38, 39, 45)
+N_PL = 46
+# Layout of the aggregated yield/flow terms (the ``yf`` scratch array): f, ∂f/∂σ, ∂f/∂p (φ
+# coefficients), N, ∂N/∂σ (3x3), ∂N/∂p (3x6), tr N, ∂trN/∂σ, ∂trN/∂p.
+YF_F, YF_FS, YF_FP, YF_N, YF_NS, YF_NP, YF_TR, YF_TRS, YF_TRP = 0, 1, 4, 7, 10, 19, 37, 38, 41
+N_YF = 47
+
+NEWTON_MAXIT_PLANE = 60
+PLANE_TOL = 1e-13
+"""Plane search: a Newton or bisection step below this (radians of u) ends it."""
+
+
+@njit(cache=True, error_model="numpy")
+def _clamped(angle, d1, d2, lo, hi):
+    """(angle, d1, d2) with angle clamped to [lo, hi] (derivatives 0 where clamped)."""
+    if angle < lo:
+        return lo, 0.0, 0.0, False
+    if angle > hi:
+        return hi, 0.0, 0.0, False
+    return angle, d1, d2, True
+
+
+@njit(cache=True, error_model="numpy")
+def _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
+    """h, ∂h/∂u, ∂²h/∂u² at u = 2(θ - α) on the arc of sign g (the plane search)."""
+    cu = np.cos(u)
+    su = np.sin(u)
+    c2 = ca * cu - sa * su
+    s2 = sa * cu + ca * su
+    sn = m + r * cu
+    phi, pu, puu, _ = _clamped(phi0 + pc * c2 + ps * s2, -pc * s2 + ps * c2,
+                               -(pc * c2 + ps * s2), phi_lo, phi_hi)
+    t = np.tan(phi)
+    sec2 = 1.0 + t * t
+    tu = sec2 * pu
+    tuu = 2.0 * t * sec2 * pu * pu + sec2 * puu
+    h = -g * r * su + t * sn
+    hu = -g * r * cu + tu * sn - t * r * su
+    huu = g * r * su + tuu * sn - 2.0 * tu * r * su - t * r * cu
+    return h, hu, huu
+
+
+@njit(cache=True, error_model="numpy")
+def arc_maximum(g, u0, n_search, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
+    """u of the maximum of h over the arc of sign g (u in [0, π] for g < 0, [-π, 0] else).
+
+    With ``n_search`` > 0 the best of that many evenly spaced points starts the Newton
+    iteration and brackets it; otherwise ``u0`` starts it (a warm start) inside the whole
+    arc. Newton on ∂h/∂u = 0 is safeguarded by bisection on the sign of ∂h/∂u.
+    """
+    if g < 0.0:
+        lo = 0.0
+        hi = np.pi
+    else:
+        lo = -np.pi
+        hi = 0.0
+    u = min(max(u0, lo), hi)
+    if n_search > 0:
+        du = (hi - lo) / n_search
+        best = -np.inf
+        for j in range(n_search):
+            uj = lo + (j + 0.5) * du
+            h, _, _ = _h_on_arc(uj, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)
+            if h > best:
+                best = h
+                u = uj
+        lo = max(lo, u - du)
+        hi = min(hi, u + du)
+    for _ in range(NEWTON_MAXIT_PLANE):
+        _, hu, huu = _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)
+        if huu < 0.0 and abs(hu) < PLANE_TOL * -huu:   # the Newton step is below tolerance
+            return u
+        if hu > 0.0:
+            lo = u
+        elif hu < 0.0:
+            hi = u
+        else:
+            return u
+        un = u - hu / huu if huu < 0.0 else 0.5 * (lo + hi)
+        if not (lo < un < hi):
+            un = 0.5 * (lo + hi)
+        step = abs(un - u)
+        u = un
+        if step < PLANE_TOL:
+            break
+    return u
+
+
+@njit(cache=True, error_model="numpy")
+def _slip_angle(sq, cq, sp, cp, dpsi, dphi):
+    """(sin ψ̂, cos ψ̂) and their derivatives along (dψ, dφ) (module doc)."""
+    num = sq * cp
+    den = 1.0 - sq * sp
+    rho = np.hypot(num, den)
+    sh = num / rho
+    ch = den / rho
+    d_num = cq * cp * dpsi - sq * sp * dphi
+    d_den = -(cq * sp * dpsi + sq * cp * dphi)
+    d_rho = (num * d_num + den * d_den) / rho
+    return sh, ch, (d_num - sh * d_rho) / rho, (d_den - ch * d_rho) / rho
+
+
+@njit(cache=True, error_model="numpy")
+def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
+    """Every term of the arc-g maximum near u, written to row k of ``pl`` (layout PL_*).
+
+    ``fab`` = (φ0, pc, ps, ψ0, qc, qs, ·, ·, φ_min, φ_max) (:func:`fabric_terms`). u need
+    not be the exact maximizer: with the plane's Newton step δθ = -h_θ/h_θθ (stored as
+    PL_DT, limited to the arc) the values are those of the predicted maximum to second
+    order — h + ½ h_θ δθ, N + N_θ δθ, ∂h/∂σ + h_θσ δθ — so an outer Newton iteration that
+    also moves the plane by δθ + θ_σ dσ + θ_p dp solves the plane's optimality jointly
+    (static condensation). At the exact maximizer δθ = 0 and every term is exact.
+    """
+    phi0, pc, ps, psi0, qc, qs = fab[0], fab[1], fab[2], fab[3], fab[4], fab[5]
+    cu = np.cos(u)
+    su = np.sin(u)
+    c2 = ca * cu - sa * su
+    s2 = sa * cu + ca * su
+    sn = m + r * cu
+    tau = -r * su
+    # Voigt gradients of σn and τ, and their θ-derivatives (e = (½, ½, 0)).
+    sn_s0 = 0.5 * (1.0 + c2)
+    sn_s1 = 0.5 * (1.0 - c2)
+    sn_s2 = s2
+    ta_s0 = -0.5 * s2
+    ta_s1 = 0.5 * s2
+    ta_s2 = c2
+    # Friction: φ_θ = 2 φ_u, φ_θθ = 4 φ_uu; basis of its coefficients (1, c2, s2).
+    phi, p_t, p_tt, phi_free = _clamped(phi0 + pc * c2 + ps * s2, 2.0 * (-pc * s2 + ps * c2),
+                                        -4.0 * (pc * c2 + ps * s2), fab[8], fab[9])
+    t = np.tan(phi)
+    sec2 = 1.0 + t * t
+    t_t = sec2 * p_t
+    t_tt = 2.0 * t * sec2 * p_t * p_t + sec2 * p_tt
+    h = g * tau + t * sn
+    h_t = -2.0 * g * (sn - m) + t_t * sn + 2.0 * t * tau
+    h_tt = -4.0 * g * tau + t_tt * sn + 4.0 * t_t * tau - 4.0 * t * (sn - m)
+    # h_θσ = -2g(∂σn/∂σ - e) + T_θ ∂σn/∂σ + 2T ∂τ/∂σ
+    hts0 = -2.0 * g * (sn_s0 - 0.5) + t_t * sn_s0 + 2.0 * t * ta_s0
+    hts1 = -2.0 * g * (sn_s1 - 0.5) + t_t * sn_s1 + 2.0 * t * ta_s1
+    hts2 = -2.0 * g * sn_s2 + t_t * sn_s2 + 2.0 * t * ta_s2
+    if h_tt < -1e-12 * (abs(m) + r):     # an interior maximum, resolvable against |σ|
+        inv = -1.0 / h_tt
+        # The plane's Newton step, kept inside the arc (u + 2δθ in [0, π] or [-π, 0]).
+        lo = 0.0 if g < 0.0 else -np.pi
+        dt = min(max(inv * h_t, 0.5 * (lo - u)), 0.5 * (lo + np.pi - u))
+    else:
+        inv = 0.0
+        dt = 0.0
+    pl[k, PL_DT] = dt
+    pl[k, PL_H] = h + 0.5 * h_t * dt
+    pl[k, PL_HS] = g * ta_s0 + t * sn_s0 + hts0 * dt
+    pl[k, PL_HS + 1] = g * ta_s1 + t * sn_s1 + hts1 * dt
+    pl[k, PL_HS + 2] = g * ta_s2 + t * sn_s2 + hts2 * dt
+    # ∂θ/∂σ = -h_θσ / h_θθ (0 where the maximum is not interior, or R ~ 1e-12 |σ|).
+    pl[k, PL_TS] = inv * hts0
+    pl[k, PL_TS + 1] = inv * hts1
+    pl[k, PL_TS + 2] = inv * hts2
+    # Dilatancy, clamped to [-φ, φ] (then it follows φ).
+    psi = psi0 + qc * c2 + qs * s2
+    q_t = 2.0 * (-qc * s2 + qs * c2)
+    clamp = 0.0
+    if psi > phi:
+        psi = phi
+        q_t = p_t
+        clamp = 1.0
+    elif psi < -phi:
+        psi = -phi
+        q_t = -p_t
+        clamp = -1.0
+    sq = np.sin(psi)
+    cq = np.cos(psi)
+    cp = 1.0 / np.sqrt(sec2)
+    sp = t * cp
+    sh, ch, sh_t, ch_t = _slip_angle(sq, cq, sp, cp, q_t, p_t)
+    # N_θ: ∂(∂τ/∂σ)/∂θ = (-c2, c2, -2 s2), ∂(∂σn/∂σ)/∂θ = (-s2, s2, 2 c2).
+    nt0 = g * ch_t * ta_s0 - g * ch * c2 + sh_t * sn_s0 - sh * s2
+    nt1 = g * ch_t * ta_s1 + g * ch * c2 + sh_t * sn_s1 + sh * s2
+    nt2 = g * ch_t * ta_s2 - 2.0 * g * ch * s2 + sh_t * sn_s2 + 2.0 * sh * c2
+    pl[k, PL_N] = g * ch * ta_s0 + sh * sn_s0 + nt0 * dt
+    pl[k, PL_N + 1] = g * ch * ta_s1 + sh * sn_s1 + nt1 * dt
+    pl[k, PL_N + 2] = g * ch * ta_s2 + sh * sn_s2 + nt2 * dt
+    pl[k, PL_NT] = nt0
+    pl[k, PL_NT + 1] = nt1
+    pl[k, PL_NT + 2] = nt2
+    pl[k, PL_SH] = sh + sh_t * dt
+    pl[k, PL_SHT] = sh_t
+    # Derivatives in p at fixed θ: φ = φ0 + pc c2 + ps s2 (if not clamped), ψ likewise.
+    for j in range(N_P):
+        b = 1.0 if j % 3 == 0 else (c2 if j % 3 == 1 else s2)
+        b_t = 0.0 if j % 3 == 0 else (-2.0 * s2 if j % 3 == 1 else 2.0 * c2)
+        if j < 3:
+            dphi = b if phi_free else 0.0
+            dphi_t = b_t if phi_free else 0.0
+            dpsi = clamp * dphi
+            t_p = sec2 * dphi
+            ht_p = (2.0 * t * sec2 * dphi * p_t + sec2 * dphi_t) * sn + 2.0 * t_p * tau
+            pl[k, PL_HP + j] = t_p * sn + ht_p * dt
+            pl[k, PL_TP + j] = inv * ht_p
+        else:
+            dphi = 0.0
+            dpsi = b if clamp == 0.0 else 0.0
+        _, _, sh_p, ch_p = _slip_angle(sq, cq, sp, cp, dpsi, dphi)
+        pl[k, PL_NP + j] = g * ch_p * ta_s0 + sh_p * sn_s0
+        pl[k, PL_NP + N_P + j] = g * ch_p * ta_s1 + sh_p * sn_s1
+        pl[k, PL_NP + 2 * N_P + j] = g * ch_p * ta_s2 + sh_p * sn_s2
+        pl[k, PL_SHP + j] = sh_p
+
+
+@njit(cache=True, error_model="numpy")
+def fabric_terms(c, a, bc, bs, prm):
+    """The per-state constants ``fab`` of :func:`plane_terms` (layout of ``prm``: fabric_model).
+
+    (Bc', Bs') = fabric rotated by -a3/2 gives a2 B cos(2(θ-θp) + a3) = pc cos 2θ + ps sin 2θ.
+    """
+    dphi = prm[3]
+    dpsi = prm[4]
+    c_star = prm[5]
+    a2 = prm[10]
+    a3 = prm[11]
+    b2 = prm[14]
+    b3 = prm[15]
+    phi0 = prm[8] + dphi * (c - c_star) + prm[9] * a
+    psi0 = prm[12] + dpsi * (c - c_star) + prm[13] * a
+    pc = a2 * (bc * np.cos(a3) + bs * np.sin(a3))
+    ps = a2 * (bs * np.cos(a3) - bc * np.sin(a3))
+    qc = b2 * (bc * np.cos(b3) + bs * np.sin(b3))
+    qs = b2 * (bs * np.cos(b3) - bc * np.sin(b3))
+    return phi0, pc, ps, psi0, qc, qs, dphi, dpsi, prm[6], prm[7]
+
+
+@njit(cache=True, error_model="numpy")
+def fabric_terms_jacobian(prm, out):
+    """``out`` (6, 4) ← ∂p/∂(c, A, Bc, Bs) of :func:`fabric_terms` (constant: p is linear)."""
+    out[:, :] = 0.0
+    out[0, 0] = prm[3]
+    out[3, 0] = prm[4]
+    out[0, 1] = prm[9]
+    out[3, 1] = prm[13]
+    for row, amp, ang in ((1, prm[10], prm[11]), (4, prm[14], prm[15])):
+        out[row, 2] = amp * np.cos(ang)          # pc = amp (Bc cos a + Bs sin a)
+        out[row, 3] = amp * np.sin(ang)
+        out[row + 1, 2] = -amp * np.sin(ang)     # ps = amp (Bs cos a - Bc sin a)
+        out[row + 1, 3] = amp * np.cos(ang)
+
+
+@njit(cache=True, error_model="numpy")
+def stress_frame(sxx, syy, sxy):
+    """(m, R, cos 2α, sin 2α): mean stress, deviator radius, major principal direction."""
+    m = 0.5 * (sxx + syy)
+    d = 0.5 * (sxx - syy)
+    r = np.hypot(d, sxy)
+    if r > 0.0:
+        return m, r, d / r, sxy / r
+    return m, r, 1.0, 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def arc_u(theta, g, two_alpha):
+    """u = 2(θ - α) of plane θ, wrapped to (-π, π] and moved to the nearest end of arc g."""
+    u = 2.0 * theta - two_alpha
+    while u > np.pi:
+        u -= 2.0 * np.pi
+    while u <= -np.pi:
+        u += 2.0 * np.pi
+    if g < 0.0 and u < 0.0:
+        return 0.0 if u > -0.5 * np.pi else np.pi
+    if g > 0.0 and u > 0.0:
+        return 0.0 if u < 0.5 * np.pi else -np.pi
+    return u
+
+
+@njit(cache=True, error_model="numpy")
+def yield_value(sxx, syy, sxy, fab, beta, n_search, theta):
+    """f(σ) alone (the elastic check), searching both arcs.
+
+    ``theta`` (2,) in/out: the planes of the arc maxima (warm starts in, maximizers out).
+    """
+    m, r, ca, sa = stress_frame(sxx, syy, sxy)
+    two_alpha = np.arctan2(sa, ca)
+    phi0, pc, ps = fab[0], fab[1], fab[2]
+    hk0 = 0.0
+    hk1 = 0.0
+    for k in range(2):
+        g = -1.0 if k == 0 else 1.0
+        u = arc_maximum(g, arc_u(theta[k], g, two_alpha), n_search, m, r, ca, sa, phi0, pc, ps,
+                        fab[8], fab[9])
+        theta[k] = 0.5 * (two_alpha + u)
+        h, _, _ = _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, fab[8], fab[9])
+        if k == 0:
+            hk0 = h
+        else:
+            hk1 = h
+    s = np.hypot(m, r)
+    w0 = 0.5 if s == 0.0 else 1.0 / (1.0 + np.exp(beta * (hk1 - hk0) / s))
+    return w0 * hk0 + (1.0 - w0) * hk1
+
+
+@njit(cache=True, error_model="numpy")
+def yield_and_flow(sxx, syy, sxy, fab, beta, search, n_search, theta, pl, yf):
+    """f, N, tr N and their σ- and c-derivatives into ``yf`` (layout YF_*; module doc).
+
+    ``theta`` (2,): the planes of the two arcs. With ``search`` each arc's maximum is found
+    first (grid of ``n_search`` points, or from ``theta`` if 0) and ``theta`` updated;
+    without, the terms are the one-step predictions of :func:`plane_terms` at ``theta``
+    (the caller moves the planes). ``pl`` (2, N_PL) scratch. Blocks are row-major:
+    yf[YF_NS + 3 i + j] = ∂N_i/∂σ_j, yf[YF_NP + 6 i + j] = ∂N_i/∂p_j.
+    """
+    m, r, ca, sa = stress_frame(sxx, syy, sxy)
+    two_alpha = np.arctan2(sa, ca)
+    for k in range(2):
+        g = -1.0 if k == 0 else 1.0
+        u = arc_u(theta[k], g, two_alpha)
+        if search:
+            u = arc_maximum(g, u, n_search, m, r, ca, sa, fab[0], fab[1], fab[2], fab[8],
+                            fab[9])
+            theta[k] = 0.5 * (two_alpha + u)
+        plane_terms(u, g, m, r, ca, sa, fab, pl, k)
+    h0 = pl[0, PL_H]
+    h1 = pl[1, PL_H]
+    s = np.hypot(m, r)
+    # Softmax of z_k = β h_k / s over two arcs: w0 = 1/(1 + exp(z1 - z0)), dw0 = w0 w1 d(z0 - z1).
+    if s > 0.0:
+        w0 = 1.0 / (1.0 + np.exp(beta * (h1 - h0) / s))
+        s_s = (sxx / (2.0 * s), syy / (2.0 * s), sxy / s)
+        k_w = w0 * (1.0 - w0) * beta / s
+    else:
+        w0 = 0.5
+        s_s = (0.0, 0.0, 0.0)
+        k_w = 0.0
+    w1 = 1.0 - w0
+    dh = h0 - h1
+    dsh = pl[0, PL_SH] - pl[1, PL_SH]
+    yf[YF_F] = w0 * h0 + w1 * h1
+    yf[YF_TR] = w0 * pl[0, PL_SH] + w1 * pl[1, PL_SH]
+    for i in range(3):
+        yf[YF_N + i] = w0 * pl[0, PL_N + i] + w1 * pl[1, PL_N + i]
+    for j in range(3):
+        dw = k_w * (pl[0, PL_HS + j] - pl[1, PL_HS + j] - dh * s_s[j] / s) if s > 0.0 else 0.0
+        yf[YF_FS + j] = w0 * pl[0, PL_HS + j] + w1 * pl[1, PL_HS + j] + dh * dw
+        yf[YF_TRS + j] = (dsh * dw + w0 * pl[0, PL_SHT] * pl[0, PL_TS + j]
+                          + w1 * pl[1, PL_SHT] * pl[1, PL_TS + j])
+        for i in range(3):
+            yf[YF_NS + 3 * i + j] = ((pl[0, PL_N + i] - pl[1, PL_N + i]) * dw
+                                     + w0 * pl[0, PL_NT + i] * pl[0, PL_TS + j]
+                                     + w1 * pl[1, PL_NT + i] * pl[1, PL_TS + j])
+    for j in range(N_P):
+        if j < 3:    # the φ coefficients move h (the weights) and the planes
+            dw = k_w * (pl[0, PL_HP + j] - pl[1, PL_HP + j])
+            yf[YF_FP + j] = w0 * pl[0, PL_HP + j] + w1 * pl[1, PL_HP + j] + dh * dw
+            tp0 = pl[0, PL_TP + j]
+            tp1 = pl[1, PL_TP + j]
+        else:
+            dw = 0.0
+            tp0 = 0.0
+            tp1 = 0.0
+        yf[YF_TRP + j] = (dsh * dw + w0 * (pl[0, PL_SHT] * tp0 + pl[0, PL_SHP + j])
+                          + w1 * (pl[1, PL_SHT] * tp1 + pl[1, PL_SHP + j]))
+        for i in range(3):
+            yf[YF_NP + N_P * i + j] = (
+                (pl[0, PL_N + i] - pl[1, PL_N + i]) * dw
+                + w0 * (pl[0, PL_NT + i] * tp0 + pl[0, PL_NP + N_P * i + j])
+                + w1 * (pl[1, PL_NT + i] * tp1 + pl[1, PL_NP + N_P * i + j]))

@@ -1,0 +1,440 @@
+"""Time stepping: velocity Verlet in the fluctuation field of a deforming periodic cell.
+
+With positions x = h s, full velocities u = L x + v' (:mod:`dem.periodic_cell`), the
+equations of motion are integrated for the fluctuation velocity v', the spin ω, the
+reduced coordinates s and the cell h:
+
+    m dv'/dt = F - m L v',    I dω/dt = T,    ds/dt = h⁻¹ v',    dh/dt = L h.
+
+The -m L v' term (the SLLOD form) makes the books close exactly: the kinetic energy of
+the fluctuations plus the energy stored in the contacts changes at the rate
+V σ:L - (dissipation), with σ the Love–Weber stress including its kinetic part
+-(1/V) Σ m v'⊗v' (tension positive). That is the external work the cell does.
+
+One step of length dt (kick–drift–kick; forces F_n known at the start):
+
+    1. L for this step: prescribed components at their rate, stress-controlled ones
+       from the servo (:mod:`dem.servo`) on the stress σ_n;
+    2. v' += dt/2 (F_n/m - L v'),  ω += dt/2 T_n/I;
+    3. h_{n+1} by the Cayley map; s += dt h_mid⁻¹ v'  (h_mid = (h_n + h_{n+1})/2);
+    4. if the neighbour list may have become invalid, return to rebuild it (the step
+       then resumes at 5);
+    5. contact forces at (s_{n+1}, h_{n+1}) with the half-step velocities
+       (:mod:`dem.contact_law`), one pass over pairs;
+    6. gather F, T per disc (no scattered writes), v' += dt/2 (F/m - L v'),
+       ω += dt/2 T/I;
+    7. σ_{n+1}, accumulators: strain ε += sym(L) dt, work += dt V_mid (σ_n+σ_{n+1})/2 : L.
+
+Kernels run with numba ``prange`` over fixed chunks of CHUNK discs or pairs; every sum is
+formed per chunk and the chunk sums are added in chunk order, so the results are
+bitwise identical for any number of threads (tested).
+
+Time step: dt = f sqrt(m_min/kn). Velocity Verlet is stable for ω_max dt < 2; a disc
+with at most Z_MAX contacts, each coupling translation and rotation (a disc's tangential
+effective mass is m/3, so a contact's stiffest mode is max(2 kn, 6 kt)/m_min), has
+ω_max² <= Z_MAX max(2 kn, 6 kt)/m_min, and normal damping of ratio β lowers the limit
+by the factor sqrt(1+β²) - β. :func:`time_step` refuses f above that limit.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit, prange
+
+from dem import neighbours
+from dem.contact_law import ContactLaw, contact_response
+from dem.periodic_cell import cayley_step
+from dem.servo import L_MAX_FACTOR, servo_rate, time_constant
+from dem.state import D_DAMP, D_FRIC, D_ROLL, EXX, EXY, EYY, TAU, TIME, WORK, State
+
+CHUNK = 256
+Z_MAX = 6
+DT_FRACTION = 0.1
+"""Default dt in units of sqrt(m_min/kn)."""
+
+OK, NEED_REBUILD, NOT_FINITE = 0, 1, 2
+
+
+class TimeStepError(ValueError):
+    """Time step above the stability limit (the message names both)."""
+
+
+def stable_fraction(law: ContactLaw) -> float:
+    """Largest f = dt / sqrt(m_min/kn) that :func:`time_step` accepts (see module doc)."""
+    beta = law.beta
+    stiff = max(2.0, 6.0 * law.kt_ratio)
+    return 2.0 / math.sqrt(Z_MAX * stiff) * (math.sqrt(1.0 + beta * beta) - beta)
+
+
+def time_step(law: ContactLaw, m_min: float, fraction: float = DT_FRACTION) -> float:
+    """dt = fraction · sqrt(m_min/kn), refused above the stability limit."""
+    limit = stable_fraction(law)
+    if not (math.isfinite(fraction) and 0.0 < fraction <= limit):
+        raise TimeStepError(f"time step fraction {fraction} x sqrt(m_min/kn) is above the "
+                            f"stability limit; accepted range (0, {limit:.4g}] for kt/kn = "
+                            f"{law.kt_ratio}, e = {law.e}")
+    return fraction * math.sqrt(m_min / law.kn)
+
+
+@dataclass(frozen=True)
+class Dynamics:
+    """Settings fixed during a run: contact law, dt, skin, servo constants."""
+
+    law: ContactLaw
+    dt: float
+    skin: float
+    gdot_ref: float
+    tau_servo: float
+    l_max: float
+
+
+def dynamics(law: ContactLaw, m_min: float, inertial: float, fraction: float = DT_FRACTION,
+             skin: float = 0.2, l_max: float | None = None) -> Dynamics:
+    """Dynamics for a run at inertial number ``inertial`` (γ̇_ref = I in DEM units).
+
+    The servo time constant follows κ (:func:`dem.servo.time_constant`) and its rate cap
+    is L_MAX_FACTOR γ̇_ref unless ``l_max`` is given (preparation caps at its own rate).
+    """
+    if not (math.isfinite(inertial) and inertial > 0):
+        raise ValueError(f"inertial number I = {inertial} out of range; accepted (0, inf) "
+                         f"(quasi-static: I <= 1e-3)")
+    if not (math.isfinite(skin) and skin > 0):
+        raise ValueError(f"Verlet skin = {skin} out of range; accepted (0, inf) (units of d)")
+    return Dynamics(law, time_step(law, m_min, fraction), skin, inertial,
+                    time_constant(law.kn), l_max if l_max is not None else L_MAX_FACTOR * inertial)
+
+
+@dataclass
+class Control:
+    """What the cell does during a call of :func:`advance`.
+
+    rate (4,): prescribed L components (xx, yy, xy, yx) as absolute rates; controlled
+    (4,) bool: which are servo-controlled instead; target0/target1 (3,): stress targets
+    (sxx, syy, sxy) at the start and end of the call, interpolated linearly per step.
+    """
+
+    rate: np.ndarray
+    controlled: np.ndarray
+    target0: np.ndarray
+    target1: np.ndarray
+
+    @classmethod
+    def fixed(cls) -> "Control":
+        """A cell at rest (L = 0)."""
+        return cls(np.zeros(4), np.zeros(4, bool), np.zeros(3), np.zeros(3))
+
+
+# ----------------------------------------------------------------------------- kernels
+
+@njit(cache=True, parallel=True)
+def kick_drift(force, torque, v, omega, s, s_ref, inv_mass, inv_inertia, L, h_new, hmid_inv,
+               half_dt, dt):
+    """Steps 2–3 for the discs; returns max_i |h_new (s_i - s_ref,i)| (for the list check)."""
+    n = s.shape[0]
+    nchunk = (n + CHUNK - 1) // CHUNK
+    dmax = np.zeros(nchunk)
+    for c in prange(nchunk):
+        dm = 0.0
+        for p in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
+            vx, vy = v[p, 0], v[p, 1]
+            vx2 = vx + half_dt * (force[p, 0] * inv_mass[p] - (L[0, 0] * vx + L[0, 1] * vy))
+            vy2 = vy + half_dt * (force[p, 1] * inv_mass[p] - (L[1, 0] * vx + L[1, 1] * vy))
+            v[p, 0], v[p, 1] = vx2, vy2
+            omega[p] += half_dt * torque[p] * inv_inertia[p]
+            s[p, 0] += dt * (hmid_inv[0, 0] * vx2 + hmid_inv[0, 1] * vy2)
+            s[p, 1] += dt * (hmid_inv[1, 0] * vx2 + hmid_inv[1, 1] * vy2)
+            d0, d1 = s[p, 0] - s_ref[p, 0], s[p, 1] - s_ref[p, 1]
+            dx = h_new[0, 0] * d0 + h_new[0, 1] * d1
+            dy = h_new[1, 0] * d0 + h_new[1, 1] * d1
+            d2 = dx * dx + dy * dy
+            if d2 > dm:
+                dm = d2
+        dmax[c] = dm
+    return math.sqrt(dmax.max()) if nchunk > 0 else 0.0
+
+
+NPAIR_SUMS = 10  # sxx, syy, sxy, Mxx, Myy, Mxy, Myx, d_damp, d_fric, d_roll
+
+
+@njit(cache=True, parallel=True)
+def pair_forces(h, L, s, v, omega, radius, mass, pair_ij, pair_shift, pair_hist, pair_f,
+                n_pairs, kn, kt, beta, mu, mu_roll, dt):
+    """Step 5: contact forces of every listed pair; returns the summed (NPAIR_SUMS,) terms.
+
+    Writes pair_f[q] = (fx, fy, torque on i, torque on j) with (fx, fy) the force on i,
+    updates the histories (by dt; dt = 0 evaluates without advancing ξ), and sums
+    f⊗l (stress · V), the affine stiffness · V of each L component, and the dissipation.
+    """
+    nchunk = (n_pairs + CHUNK - 1) // CHUNK
+    part = np.zeros((max(nchunk, 1), NPAIR_SUMS))
+    h00, h01, h10, h11 = h[0, 0], h[0, 1], h[1, 0], h[1, 1]
+    for c in prange(nchunk):
+        acc = np.zeros(NPAIR_SUMS)
+        for q in range(c * CHUNK, min(n_pairs, (c + 1) * CHUNK)):
+            i, j = pair_ij[q, 0], pair_ij[q, 1]
+            ds0 = s[j, 0] + pair_shift[q, 0] - s[i, 0]
+            ds1 = s[j, 1] + pair_shift[q, 1] - s[i, 1]
+            lx = h00 * ds0 + h01 * ds1
+            ly = h10 * ds0 + h11 * ds1
+            ri, rj = radius[i], radius[j]
+            rs = ri + rj
+            d2 = lx * lx + ly * ly
+            if d2 >= rs * rs:
+                if pair_hist[q, 3] != 0.0:
+                    # the contact opened: its stored tangential energy is lost, and the
+                    # damping force does its work down to δ = 0
+                    acc[7] -= 0.5 * pair_hist[q, 2] * pair_hist[q, 3]
+                    acc[8] += 0.5 * kt * pair_hist[q, 0] ** 2
+                    reff = ri * rj / rs
+                    acc[9] += 0.5 * kt * reff * reff * pair_hist[q, 1] ** 2
+                    for a in range(4):
+                        pair_hist[q, a] = 0.0
+                pair_f[q, 0] = 0.0
+                pair_f[q, 1] = 0.0
+                pair_f[q, 2] = 0.0
+                pair_f[q, 3] = 0.0
+                continue
+            dist = math.sqrt(d2)
+            nx, ny = lx / dist, ly / dist
+            tx, ty = -ny, nx
+            delta = rs - dist
+            li, lj = ri - 0.5 * delta, rj - 0.5 * delta
+            spin = omega[i] * li + omega[j] * lj
+            wx = L[0, 0] * lx + L[0, 1] * ly + v[j, 0] - v[i, 0] - spin * tx
+            wy = L[1, 0] * lx + L[1, 1] * ly + v[j, 1] - v[i, 1] - spin * ty
+            vn = wx * nx + wy * ny
+            vt = wx * tx + wy * ty
+            mi, mj = mass[i], mass[j]
+            fn, ft, mr, xi, xr, fd, dd, dfr, drl = contact_response(
+                delta, pair_hist[q, 3], pair_hist[q, 2], vn, vt, omega[j] - omega[i],
+                pair_hist[q, 0], pair_hist[q, 1], mi * mj / (mi + mj), ri * rj / rs, kn, kt, beta,
+                mu, mu_roll, dt)
+            pair_hist[q, 0] = xi
+            pair_hist[q, 1] = xr
+            pair_hist[q, 2] = fd
+            pair_hist[q, 3] = delta
+            fx = -fn * nx + ft * tx
+            fy = -fn * ny + ft * ty
+            pair_f[q, 0] = fx
+            pair_f[q, 1] = fy
+            pair_f[q, 2] = li * ft + mr
+            pair_f[q, 3] = lj * ft - mr
+            acc[0] += fx * lx
+            acc[1] += fy * ly
+            acc[2] += 0.5 * (fx * ly + fy * lx)
+            ax = kn * nx * nx + kt * tx * tx
+            ay = kn * ny * ny + kt * ty * ty
+            acc[3] += ax * lx * lx
+            acc[4] += ay * ly * ly
+            acc[5] += ax * ly * ly
+            acc[6] += ay * lx * lx
+            acc[7] += dd
+            acc[8] += dfr
+            acc[9] += drl
+        part[c, :] = acc
+    out = np.zeros(NPAIR_SUMS)
+    for c in range(nchunk):
+        out += part[c]
+    return out
+
+
+@njit(cache=True, parallel=True)
+def gather_kick(pair_f, inc_ptr, inc, force, torque, v, omega, mass, inv_mass, inv_inertia, L,
+                half_dt):
+    """Step 6: F, T per disc from its pairs, then the second half kick.
+
+    Returns (Σ m v'x², Σ m v'y², Σ m v'x v'y, finite) after the kick (kinetic stress · V
+    is minus these).
+    """
+    n = v.shape[0]
+    nchunk = (n + CHUNK - 1) // CHUNK
+    part = np.zeros((max(nchunk, 1), 4))
+    for c in prange(nchunk):
+        kxx = 0.0
+        kyy = 0.0
+        kxy = 0.0
+        bad = 0.0
+        for p in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
+            fx = 0.0
+            fy = 0.0
+            t = 0.0
+            for k in range(inc_ptr[p], inc_ptr[p + 1]):
+                q = inc[k]
+                if q >= 0:
+                    fx += pair_f[q, 0]
+                    fy += pair_f[q, 1]
+                    t += pair_f[q, 2]
+                else:
+                    q = -q - 1
+                    fx -= pair_f[q, 0]
+                    fy -= pair_f[q, 1]
+                    t += pair_f[q, 3]
+            force[p, 0] = fx
+            force[p, 1] = fy
+            torque[p] = t
+            vx, vy = v[p, 0], v[p, 1]
+            vx2 = vx + half_dt * (fx * inv_mass[p] - (L[0, 0] * vx + L[0, 1] * vy))
+            vy2 = vy + half_dt * (fy * inv_mass[p] - (L[1, 0] * vx + L[1, 1] * vy))
+            v[p, 0], v[p, 1] = vx2, vy2
+            omega[p] += half_dt * t * inv_inertia[p]
+            kxx += mass[p] * vx2 * vx2
+            kyy += mass[p] * vy2 * vy2
+            kxy += mass[p] * vx2 * vy2
+            if not (math.isfinite(vx2) and math.isfinite(vy2) and math.isfinite(omega[p])):
+                bad = 1.0
+        part[c, 0] = kxx
+        part[c, 1] = kyy
+        part[c, 2] = kxy
+        part[c, 3] = bad
+    out = np.zeros(4)
+    for c in range(nchunk):
+        out += part[c]
+    out[3] = 1.0 if out[3] == 0.0 else 0.0
+    return out
+
+
+@njit(cache=True)
+def _finish(h, ps, ks, stress, stiff):
+    """σ (incl. kinetic part) and affine stiffness from the pair and disc sums."""
+    vol = h[0, 0] * h[1, 1] - h[0, 1] * h[1, 0]
+    stress[0] = (ps[0] - ks[0]) / vol
+    stress[1] = (ps[1] - ks[1]) / vol
+    stress[2] = (ps[2] - ks[2]) / vol
+    for a in range(4):
+        stiff[a] = ps[3 + a] / vol
+
+
+@njit(cache=True)
+def _servo(L, l_int, stress, stiff, rate, controlled, target, dt, tau, l_max):
+    """Step 1: set L (xx, yy, xy, yx -> L[0,0], L[1,1], L[0,1], L[1,0])."""
+    for a in range(4):
+        r, cc = (0, 0) if a == 0 else (1, 1) if a == 1 else (0, 1) if a == 2 else (1, 0)
+        if controlled[a]:
+            k = a if a < 2 else 2
+            L[r, cc], l_int[a] = servo_rate(target[k] - stress[k], stiff[a], l_int[a], dt, tau,
+                                            l_max)
+        else:
+            L[r, cc] = rate[a]
+
+
+@njit(cache=True)
+def advance_kernel(nsteps, mid_step, k0, ktotal, dt, kn, kt, beta, mu, mu_roll, skin, r_max,
+                   gdot_ref, tau_servo, l_max, radius, mass, inv_mass, inv_inertia, s, v, omega,
+                   force, torque, s_ref, h, h_ref, L, l_int, pair_ij, pair_shift, pair_hist,
+                   pair_f, n_pairs, inc_ptr, inc, rate, controlled, target0, target1, stress,
+                   stiff, acc):
+    """Up to ``nsteps`` steps (see the module doc); returns (steps completed, status).
+
+    ``mid_step``: the first step already did 1–4 (resume after a rebuild). Step k of the
+    call uses the stress target at fraction (k0 + k + 1)/ktotal of [target0, target1].
+    status NEED_REBUILD: step ``done`` stopped after 4; NOT_FINITE: a velocity is NaN/inf.
+    """
+    half = 0.5 * dt
+    target = np.empty(3)
+    h_old = h.copy()
+    for k in range(nsteps):
+        if not (k == 0 and mid_step):
+            frac = (k0 + k + 1) / ktotal
+            for a in range(3):
+                target[a] = target0[a] + (target1[a] - target0[a]) * frac
+            _servo(L, l_int, stress, stiff, rate, controlled, target, dt, tau_servo, l_max)
+            h_old[:, :] = h
+            h_new = cayley_step(h, L, dt)
+            hm = 0.5 * (h + h_new)
+            det = hm[0, 0] * hm[1, 1] - hm[0, 1] * hm[1, 0]
+            hmi = np.empty((2, 2))
+            hmi[0, 0] = hm[1, 1] / det
+            hmi[0, 1] = -hm[0, 1] / det
+            hmi[1, 0] = -hm[1, 0] / det
+            hmi[1, 1] = hm[0, 0] / det
+            dmax = kick_drift(force, torque, v, omega, s, s_ref, inv_mass, inv_inertia, L, h_new,
+                              hmi, half, dt)
+            h[:, :] = h_new
+            acc[TIME] += dt
+            acc[TAU] += gdot_ref * dt
+            acc[EXX] += L[0, 0] * dt
+            acc[EYY] += L[1, 1] * dt
+            acc[EXY] += 0.5 * (L[0, 1] + L[1, 0]) * dt
+            # list validity: disc displacements plus the cell's stretch since the rebuild
+            dr = h_ref[0, 0] * h_ref[1, 1] - h_ref[0, 1] * h_ref[1, 0]
+            e00 = (h[0, 0] * h_ref[1, 1] - h[0, 1] * h_ref[1, 0]) / dr - 1.0
+            e01 = (-h[0, 0] * h_ref[0, 1] + h[0, 1] * h_ref[0, 0]) / dr
+            e10 = (h[1, 0] * h_ref[1, 1] - h[1, 1] * h_ref[1, 0]) / dr
+            e11 = (-h[1, 0] * h_ref[0, 1] + h[1, 1] * h_ref[0, 0]) / dr - 1.0
+            stretch = math.sqrt(e00 * e00 + e01 * e01 + e10 * e10 + e11 * e11)
+            if 2.0 * dmax + stretch * (2.0 * r_max + skin) >= skin:
+                return k, NEED_REBUILD
+        else:
+            h_old[:, :] = h  # only used for V_mid below; the cell moved before the rebuild
+        ps = pair_forces(h, L, s, v, omega, radius, mass, pair_ij, pair_shift, pair_hist, pair_f,
+                         n_pairs, kn, kt, beta, mu, mu_roll, dt)
+        ks = gather_kick(pair_f, inc_ptr, inc, force, torque, v, omega, mass, inv_mass,
+                         inv_inertia, L, half)
+        s0, s1, s2 = stress[0], stress[1], stress[2]
+        _finish(h, ps, ks, stress, stiff)
+        acc[D_DAMP] += ps[7]
+        acc[D_FRIC] += ps[8]
+        acc[D_ROLL] += ps[9]
+        vmid = 0.5 * ((h_old[0, 0] * h_old[1, 1] - h_old[0, 1] * h_old[1, 0])
+                      + (h[0, 0] * h[1, 1] - h[0, 1] * h[1, 0]))
+        acc[WORK] += dt * vmid * 0.5 * ((s0 + stress[0]) * L[0, 0] + (s1 + stress[1]) * L[1, 1]
+                                        + (s2 + stress[2]) * (L[0, 1] + L[1, 0]))
+        if ks[3] == 0.0:
+            return k + 1, NOT_FINITE
+    return nsteps, OK
+
+
+# ----------------------------------------------------------------------------- drivers
+
+class DivergenceError(RuntimeError):
+    """The integration produced NaN/inf (time step too large, or a bad configuration)."""
+
+
+def evaluate_forces(state: State, dyn: Dynamics) -> State:
+    """Forces, torques, stress and stiffness at the current state (ξ histories untouched)."""
+    kn, kt, beta, mu, mu_roll = dyn.law.kernel_params()
+    ps = pair_forces(state.h, state.L, state.s, state.v, state.omega, state.radius, state.mass,
+                     state.pair_ij, state.pair_shift, state.pair_hist, state.pair_f,
+                     state.n_pairs, kn, kt, beta, mu, mu_roll, 0.0)
+    ks = gather_kick(state.pair_f, state.inc_ptr, state.inc, state.force, state.torque, state.v,
+                     state.omega, state.mass, state.inv_mass, state.inv_inertia, state.L, 0.0)
+    _finish(state.h, ps, ks, state.stress, state.stiff)
+    return state
+
+
+def advance(state: State, dyn: Dynamics, nsteps: int, control: Control | None = None) -> State:
+    """Advance ``state`` by ``nsteps`` steps in place (and return it).
+
+    Neighbour lists are rebuilt whenever the validity check asks for it; the rebuild
+    schedule therefore depends on the state only, so a run restarted from a checkpoint
+    takes exactly the same steps.
+    """
+    control = control or Control.fixed()
+    kn, kt, beta, mu, mu_roll = dyn.law.kernel_params()
+    r_max = float(state.radius.max())
+    done_total, mid = 0, False
+    controlled = np.ascontiguousarray(control.controlled, dtype=np.bool_)
+    while done_total < nsteps:
+        done, status = advance_kernel(
+            nsteps - done_total, mid, done_total, nsteps, dyn.dt, kn, kt, beta, mu, mu_roll,
+            dyn.skin, r_max, dyn.gdot_ref, dyn.tau_servo, dyn.l_max, state.radius, state.mass,
+            state.inv_mass, state.inv_inertia, state.s, state.v, state.omega, state.force,
+            state.torque, state.s_ref, state.h, state.h_ref, state.L, state.L_int,
+            state.pair_ij, state.pair_shift, state.pair_hist, state.pair_f, state.n_pairs,
+            state.inc_ptr, state.inc, np.asarray(control.rate, float), controlled,
+            np.asarray(control.target0, float), np.asarray(control.target1, float),
+            state.stress, state.stiff, state.acc)
+        state.step += done
+        done_total += done
+        if status == NOT_FINITE:
+            raise DivergenceError(f"non-finite velocity at step {state.step}: the time step "
+                                  f"{dyn.dt:.3g} is too large for this configuration, or "
+                                  f"discs overlap far too much")
+        if status == NEED_REBUILD:
+            neighbours.rebuild(state, dyn.skin)
+            mid = True
+        else:
+            mid = False
+    return state

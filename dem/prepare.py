@@ -1,0 +1,174 @@
+"""Sample preparation: a random gas, compressed isotropically and relaxed (DESIGN §6).
+
+1. :func:`random_gas`: N discs at packing fraction ``c_gas`` in a square cell, placed
+   without overlap on randomly chosen sites of a square grid with a random offset each,
+   at rest.
+2. :func:`compress_to_pressure`: both normal stresses servo-controlled to -P0
+   (:mod:`dem.servo`, strain rate capped at ``rate``) with the preparation friction
+   μ_prep (μ_prep = 0 gives dense, μ_prep = μ loose samples), until :func:`relaxed`:
+       |P/P0 - 1| < P_TOL, unbalanced force ratio < ``force_tol`` and
+       kinetic / elastic energy < ``kinetic_tol`` (kinetic energy of the discs that are
+       not rattlers: a rattler may drift or spin freely in its cage forever),
+   with σxy servo-controlled to 0 as well,
+   then the friction is switched to the test value (tangential histories kept).
+3. :func:`compress_to_fraction` (seed 002 check): compression at a prescribed strain
+   rate to a target packing fraction, then relaxation at fixed volume. Targets above
+   C_MAX are refused: random disc packings jam near c ≈ 0.84, and past C_MAX the mean
+   overlap would exceed what a linear contact law represents.
+
+The unbalanced force ratio is mean_i |F_i| / mean_c fn over discs that are not rattlers
+(:func:`dem.measure.rattler_mask`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from dem import neighbours
+from dem.contact_law import ContactLaw
+from dem.integrator import Control, Dynamics, advance, evaluate_forces
+from dem.measure import Contacts, elastic_energy, kinetic_energy, rattler_mask
+from dem.particles import ParticleError
+from dem.periodic_cell import square_cell
+from dem.state import NACC, State, new_state
+
+C_MAX = 0.92
+P_TOL = 1e-3
+FORCE_TOL = 1e-3
+KINETIC_TOL = 1e-5
+CHECK_EVERY = 500
+
+
+class PreparationError(ValueError):
+    """Bad preparation settings (the message names the value and the accepted range)."""
+
+
+@dataclass
+class PrepInfo:
+    """What the preparation did: steps, whether the thresholds were met, final values."""
+
+    steps: int = 0
+    relaxed: bool = False
+    c: float = 0.0
+    P: float = 0.0
+    unbalanced: float = math.inf
+    kinetic_ratio: float = math.inf
+
+    def to_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+def random_gas(radius: np.ndarray, c_gas: float, rng: np.random.Generator) -> State:
+    """Discs at packing fraction ``c_gas`` without overlap (see the module doc)."""
+    n = radius.shape[0]
+    k = int(math.ceil(math.sqrt(n)))
+    side = math.sqrt(math.pi * float(np.sum(radius**2)) / c_gas)
+    a = side / k
+    if a <= 2.0 * radius.max():
+        raise PreparationError(f"gas packing fraction c_gas = {c_gas} too dense to place "
+                               f"{n} discs on a grid; accepted (0, {c_gas * (a / (2 * radius.max())) ** 2:.3f})")
+    sites = rng.permutation(k * k)[:n]
+    grid = np.stack([sites % k, sites // k], axis=1).astype(float)
+    free = 0.5 * a - radius[:, None]
+    x = (grid + 0.5) * a + (2.0 * rng.random((n, 2)) - 1.0) * free
+    st = new_state(radius, x / side, square_cell(side))
+    st.rng_state = rng.bit_generator.state
+    return st
+
+
+def check_configuration(radius: np.ndarray, positions: np.ndarray, h: np.ndarray) -> None:
+    """Refuse an explicit configuration with overlapping discs (names the worst pair)."""
+    st = new_state(radius, positions @ np.linalg.inv(h).T, h)
+    neighbours.rebuild(st, 0.0)
+    c = Contacts(st)
+    if c.count:
+        k = int(np.argmax(c.delta))
+        raise ParticleError(f"explicit configuration: discs {c.i[k]} and {c.j[k]} overlap by "
+                            f"{c.delta[k]:.4g} (and {c.count - 1} more pairs); accepted: no "
+                            f"overlap (distance >= sum of radii)")
+
+
+def _rattlers(state: State, law: ContactLaw) -> np.ndarray:
+    c = Contacts(state)
+    return rattler_mask(state.n, c.i, c.j, 3 if law.mu == 0 else 2)
+
+
+def unbalanced_force_ratio(state: State, law: ContactLaw) -> float:
+    c = Contacts(state)
+    if c.count == 0:
+        return math.inf
+    ratt = _rattlers(state, law)
+    fmag = np.hypot(state.force[:, 0], state.force[:, 1])[~ratt]
+    return float(fmag.mean() / max(c.fn.mean(), 1e-300)) if fmag.size else math.inf
+
+
+def relaxed(state: State, law: ContactLaw, p_target: float | None, info: PrepInfo,
+            force_tol: float = FORCE_TOL, kinetic_tol: float = KINETIC_TOL) -> bool:
+    """Update ``info`` and say whether the relaxation thresholds are met."""
+    p = -0.5 * (state.stress[0] + state.stress[1])
+    e_el = elastic_energy(state, law)
+    info.P, info.c = float(p), state.packing_fraction
+    info.unbalanced = unbalanced_force_ratio(state, law)
+    info.kinetic_ratio = kinetic_energy(state, _rattlers(state, law)) / e_el if e_el > 0 else math.inf
+    ok_p = p_target is None or abs(p / p_target - 1.0) < P_TOL
+    info.relaxed = bool(ok_p and info.unbalanced < force_tol and info.kinetic_ratio < kinetic_tol)
+    return info.relaxed
+
+
+def _run_until_relaxed(state, dyn, control, p_target, max_steps, info, progress):
+    while info.steps < max_steps:
+        advance(state, dyn, CHECK_EVERY, control)
+        info.steps += CHECK_EVERY
+        if progress is not None:
+            progress(info)
+        if relaxed(state, dyn.law, p_target, info):
+            break
+    return state
+
+
+def compress_to_pressure(state: State, dyn: Dynamics, p0: float = 1.0, max_steps: int = 2_000_000,
+                         progress=None) -> tuple[State, PrepInfo]:
+    """Isotropic servo compression to P = p0, then relaxation (see the module doc)."""
+    info = PrepInfo()
+    neighbours.rebuild(state, dyn.skin)
+    evaluate_forces(state, dyn)
+    target = np.array([-p0, -p0, 0.0])
+    ctl = Control(np.zeros(4), np.array([True, True, True, False]), target, target)
+    _run_until_relaxed(state, dyn, ctl, p0, max_steps, info, progress)
+    return reset_accumulators(state), info
+
+
+def compress_to_fraction(state: State, dyn: Dynamics, target_c: float, rate: float,
+                         max_steps: int = 2_000_000, progress=None) -> tuple[State, PrepInfo]:
+    """Isotropic compression at strain rate ``rate`` to packing fraction ``target_c``,
+    then relaxation at fixed volume (no pressure target)."""
+    if not (0.0 < target_c <= C_MAX):
+        raise PreparationError(f"target packing fraction {target_c} is above the jamming range "
+                               f"of random disc packings (c_J ≈ 0.84); accepted (0, {C_MAX}]")
+    info = PrepInfo()
+    neighbours.rebuild(state, dyn.skin)
+    evaluate_forces(state, dyn)
+    strain = math.log(state.packing_fraction / target_c)      # ε_v to apply (< 0: compress)
+    if strain < 0.0:
+        nsteps = int(math.ceil(-strain / (rate * dyn.dt)))
+        # Cayley map of L = g I scales the area by ((1 + g dt/2)/(1 - g dt/2))² per step
+        g = 2.0 / dyn.dt * math.tanh(strain / (4.0 * nsteps))
+        ctl = Control(np.array([g, g, 0.0, 0.0]), np.zeros(4, bool), np.zeros(3), np.zeros(3))
+        advance(state, dyn, nsteps, ctl)
+        info.steps += nsteps
+    state.L[:] = 0.0
+    _run_until_relaxed(state, dyn, Control.fixed(), None, max_steps, info, progress)
+    return reset_accumulators(state), info
+
+
+def switch_friction(dyn: Dynamics, mu: float) -> Dynamics:
+    """The same dynamics with the test friction μ (tangential histories are kept)."""
+    return replace(dyn, law=dyn.law.with_friction(mu))
+
+
+def reset_accumulators(state: State) -> State:
+    """Zero time, strain, work and dissipation (a prepared sample starts a test at 0)."""
+    state.acc[:] = np.zeros(NACC)
+    return state

@@ -1,0 +1,316 @@
+"""Tier 2 update: return mapping, apex, tangent, rotation, admissibility, step-size order."""
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from conftest import model_params, stress_at, update
+from contfab.models import fabric_model as fm
+from contfab.models import slip_planes as sp
+from contfab.models import fabric_law
+from contfab.models.fabric_law import LAW_BALANCE, rotate_fabric
+from contfab.tensors import rotate
+from dem.conventions import admissibility_margin
+
+ANISO = dict(a1_deg=3.0, a2_deg=12.0, a3_deg=20.0, b0_deg=1.0, b1_deg=2.0, b2_deg=8.0,
+             b3_deg=-30.0, kappa_a=3.94, k_c=17.76, k_o=10.0)
+
+
+def _state(c, a, b, theta_p, gp=0.0):
+    return np.array([gp, c, a, b * np.cos(2 * theta_p), b * np.sin(2 * theta_p)])
+
+
+def _yield(prm, stress, c, a, bc, bs):
+    th = np.array([0.3, -0.3])
+    return sp.yield_value(*stress, sp.fabric_terms(c, a, bc, bs, prm), prm[16], 64, th)
+
+
+def _update(params, stress, state, de, dw=0.0):
+    s, q, t, status = update(params, np.atleast_2d(stress), np.atleast_2d(state),
+                             np.atleast_2d(de), np.atleast_1d(float(dw)))
+    return s[0], q[0], t[0], int(status[0])
+
+
+def _on_surface(prm, alpha, state):
+    """The stress with P = 1 and principal direction alpha on the yield surface of ``state``."""
+    lo, hi = 0.0, 1.0
+    for _ in range(60):
+        r = 0.5 * (lo + hi)
+        if _yield(prm, stress_at(1.0, r, alpha), *state[1:]) > 0.0:
+            hi = r
+        else:
+            lo = r
+    return stress_at(1.0, lo, alpha)
+
+
+@settings(max_examples=60, deadline=None)
+@given(inside=st.floats(0.0, 1.0), alpha=st.floats(0, np.pi), b=st.floats(0, 0.4),
+       theta_p=st.floats(0, np.pi), dw=st.floats(-7.0, 7.0))
+def test_rigid_rotation_is_exact(inside, alpha, b, theta_p, dw):
+    # Acceptance 4: no strain, a spin: σ rotates, θp turns by Δω, A and B do not change —
+    # from states inside the cone up to on its surface (the hardest: f = 0 to round-off).
+    params = model_params(**ANISO)
+    q = _state(0.81, 0.95, b, theta_p)
+    s = inside * _on_surface(params.array(2), alpha, q) + (1 - inside) * stress_at(1.0, 0.0, alpha)
+    s2, q2, _, status2 = _update(params, s, q, np.zeros(3), dw)
+    assert status2 == fm.STATUS_ELASTIC
+    assert s2 == pytest.approx(np.array(rotate(*s, dw)), rel=0, abs=0)
+    assert q2[[0, 1, 2]].tolist() == q[[0, 1, 2]].tolist()            # gp, c, A: bitwise
+    # B to round-off (two ulps; a floating-point rotation cannot be bit-exact), never larger
+    assert np.hypot(q2[3], q2[4]) == pytest.approx(np.hypot(q[3], q[4]), rel=4.5e-16, abs=1e-300)
+    assert np.hypot(q2[3], q2[4]) <= np.hypot(q[3], q[4])
+    assert q2[3:] == pytest.approx(np.array(rotate_fabric(q[3], q[4], dw)), rel=0, abs=0)
+
+
+@pytest.mark.parametrize("theta_p", [0.0, 0.8])
+def test_isotropic_fabric_is_not_singular(theta_p):
+    prm = model_params(**ANISO)
+    stress = stress_at(1.0, 0.4, 0.3)
+    de = 2e-3 * np.array([0.4, -1.0, 0.5])
+    iso = _update(prm, stress, _state(0.82, 0.95, 0.0, 0.0), de, 1e-3)
+    tiny = _update(prm, stress, _state(0.82, 0.95, 1e-13, theta_p), de, 1e-3)
+    assert iso[3] == tiny[3] == fm.STATUS_FACE
+    for x, y in zip(iso[:3], tiny[:3]):
+        assert np.isfinite(x).all()
+        assert np.abs(x - y).max() < 1e-10
+
+
+@settings(max_examples=80, deadline=None)
+@given(ratio=st.floats(0.2, 0.6), alpha=st.floats(0, np.pi), b=st.floats(0, 0.4),
+       theta_p=st.floats(0, np.pi), c=st.floats(0.77, 0.85),
+       de=st.lists(st.floats(-1, 1), min_size=3, max_size=3), size=st.floats(-5, -2),
+       dw=st.floats(-1e-2, 1e-2))
+def test_face_return_solves_backward_euler_and_tangent_matches_differences(
+        ratio, alpha, b, theta_p, c, de, size, dw):
+    params = model_params(**ANISO)
+    prm = params.array(2)
+    bulk, shear = prm[0], prm[1]
+    stress = stress_at(1.0, ratio, alpha)
+    state = _state(c, 0.95, b, theta_p)
+    de = 10.0 ** size * np.array(de)
+    s, q, t, status = _update(params, stress, state, de, dw)
+    if status != fm.STATUS_FACE:
+        return
+    c_mat = np.array([[bulk + shear, bulk - shear, 0], [bulk - shear, bulk + shear, 0],
+                      [0, 0, shear]])
+    trial = np.array(rotate(*stress, dw)) + c_mat @ de
+    scale = np.hypot(-0.5 * (trial[0] + trial[1]), np.hypot(0.5 * (trial[0] - trial[1]), trial[2]))
+    # Backward Euler: f(σ_{n+1}; q_{n+1}, c_{n+1}) = 0 with the fabric at the END of the step,
+    # c_{n+1} = c_n exp(-tr Δεp), q_{n+1} = Φ(rotated q_n, Δεp, c_{n+1}), Δεp = C⁻¹(σ_tr - σ).
+    assert _yield(prm, s, *q[1:]) == pytest.approx(0.0, abs=1e-11 * scale)
+    dep = np.linalg.solve(c_mat, trial - s)
+    assert q[1] == pytest.approx(c * np.exp(-(dep[0] + dep[1])), rel=1e-12)
+    assert q[0] == pytest.approx(np.hypot(dep[0] - dep[1], dep[2]), rel=1e-9, abs=1e-15)
+    fabric, _ = fabric_law.drive_fabric(state[2:].copy(), dep[None, :], np.array([dw]),
+                                        np.array([q[1]]), LAW_BALANCE, *prm[19:25])
+    assert q[2:] == pytest.approx(fabric[-1], abs=1e-10)
+    # Consistent tangent against central differences of the whole update.
+    h = 1e-6 * max(np.abs(de).max(), 1e-4)
+    fd = np.empty((3, 3))
+    for j in range(3):
+        e = np.zeros(3)
+        e[j] = h
+        sp_, _, _, stp = _update(params, stress, state, de + e, dw)
+        sm_, _, _, stm = _update(params, stress, state, de - e, dw)
+        if stp != fm.STATUS_FACE or stm != fm.STATUS_FACE:
+            return
+        fd[:, j] = (sp_ - sm_) / (2 * h)
+    assert np.abs(fd - t).max() <= 1e-6 * np.abs(c_mat).max()
+
+
+def test_tension_trial_returns_to_the_apex():
+    prm = model_params(**ANISO)
+    bulk = prm.array(2)[0]
+    stress = stress_at(0.1, 0.02, 0.3)
+    state = _state(0.80, 0.95, 0.2, 0.4)
+    de = np.array([3e-3, 2e-3, 1e-3])
+    s, q, t, status = _update(prm, stress, state, de)
+    trial_p = 0.1 - bulk * (de[0] + de[1])
+    assert status == fm.STATUS_APEX
+    assert s.tolist() == [0.0, 0.0, 0.0] and not t.any()
+    assert q[1] == pytest.approx(0.80 * np.exp(trial_p / bulk), rel=1e-14)
+
+
+def test_bad_input_fails_with_inputs_returned_and_never_nan():
+    prm = model_params(**ANISO)
+    bulk, shear = prm.array(2)[:2]
+    good_s = stress_at(1.0, 0.3, 0.2)
+    good_q = _state(0.81, 0.95, 0.2, 0.4)
+    rows = [(np.array([np.nan, -1, 0]), good_q, np.zeros(3), 0.0),
+            (good_s, np.array([0, 0.81, np.inf, 0, 0]), np.zeros(3), 0.0),
+            (good_s, good_q, np.array([0, np.nan, 0]), 0.0),
+            (good_s, good_q, np.zeros(3), np.nan),
+            (good_s, _state(1.2, 0.95, 0.2, 0.4), np.zeros(3), 0.0),
+            (good_s, _state(0.0, 0.95, 0.2, 0.4), np.zeros(3), 0.0)]
+    stress, state, de, dw = (np.array(x) for x in zip(*rows))
+    s, q, t, status = update(prm, stress, state, de, dw)
+    assert (status == fm.STATUS_FAILED).all()
+    assert np.array_equal(s, stress, equal_nan=True) and np.array_equal(q, state, equal_nan=True)
+    assert t == pytest.approx(np.broadcast_to(
+        [[bulk + shear, bulk - shear, 0], [bulk - shear, bulk + shear, 0], [0, 0, shear]], t.shape))
+
+
+@settings(max_examples=60, deadline=None)
+@given(de=st.lists(st.floats(-1, 1), min_size=3, max_size=3), size=st.floats(-12, 1),
+       ratio=st.floats(0, 2), p=st.floats(0, 10), dw=st.floats(-10, 10))
+def test_extreme_increments_give_finite_results(de, size, ratio, p, dw):
+    prm = model_params(**ANISO)
+    s, q, t, status = _update(prm, stress_at(p, ratio * p, 0.4), _state(0.81, 0.95, 0.3, 0.2),
+                              10.0 ** size * np.array(de), dw)
+    assert status != fm.STATUS_FAILED
+    assert np.isfinite(s).all() and np.isfinite(q).all() and np.isfinite(t).all()
+    assert admissibility_margin(q[2], np.hypot(q[3], q[4])) >= 0.0
+
+
+def _wandering_increments(rng, n, steps, scale):
+    """Random strain increments that keep most points yielding: a loading direction that
+    wanders (random walk), a random volumetric ratio, sizes over three decades, random spin."""
+    beta = rng.uniform(0, np.pi, n)
+    for _ in range(steps):
+        beta += rng.normal(0, 0.2, n)
+        mag = 10.0 ** (scale + rng.uniform(-1.5, 1.5, n))
+        vol = rng.uniform(-0.6, 0.4, n)
+        de = mag[:, None] * np.stack([np.cos(2 * beta) + vol, -np.cos(2 * beta) + vol,
+                                      2 * np.sin(2 * beta)], 1)
+        yield de, rng.normal(0, 1, n) * mag
+
+
+def _update_cutting(prm, stress, state, de, dw, depth=0):
+    """tiers.update as a caller uses it: failed points redo their step as two halves (the
+    contract's step cutting). Returns (stress, state, status, number of cuts)."""
+    s, q, _, status = update(prm, stress, state, de, dw)
+    failed = np.flatnonzero(status == fm.STATUS_FAILED)
+    cuts = 0
+    if failed.size and depth < 12:
+        cuts = failed.size
+        half = _update_cutting(prm, stress[failed], state[failed], 0.5 * de[failed],
+                               0.5 * dw[failed], depth + 1)
+        full = _update_cutting(prm, half[0], half[1], 0.5 * de[failed], 0.5 * dw[failed],
+                               depth + 1)
+        s[failed], q[failed], status[failed] = full[:3]
+        cuts += half[3] + full[3]
+    return s, q, status, cuts
+
+
+@settings(max_examples=5, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), scale=st.floats(-4.0, -2.5),
+       law=st.sampled_from(["balance", "balance mean-field", "relaxation"]))
+def test_fabric_admissible_on_every_step_of_1e5_random_increments(seed, scale, law):
+    # Acceptance 4: 100 points x 1000 steps of random strain increments and spins.
+    coeffs = {"balance": {}, "balance mean-field": dict(kappa_a=1.0, k_c=1.0, k_o=1.0),
+              "relaxation": dict(fabric_law="relaxation")}[law]
+    prm = model_params(**dict(ANISO, **coeffs))
+    rng = np.random.default_rng(seed)
+    n, steps = 100, 1000
+    stress = np.tile(stress_at(1.0, 0.3, 0.0), (n, 1))
+    state = np.tile(_state(0.81, 0.95, 0.2, 0.3), (n, 1))
+    counts = np.zeros(5, dtype=int)
+    cuts = 0
+    for de, dw in _wandering_increments(rng, n, steps, scale):
+        stress, state, status, c = _update_cutting(prm, stress, state, de, dw)
+        cuts += c
+        assert (status != fm.STATUS_FAILED).all()
+        assert admissibility_margin(state[:, 2], np.hypot(state[:, 3], state[:, 4])).min() >= 0.0
+        counts += np.bincount(status + 1, minlength=5)
+        # keep c in a physical range between steps (a random walk would leave (0, 1))
+        state[:, 1] = np.clip(state[:, 1], 0.7, 0.9)
+    assert np.isfinite(stress).all()
+    assert counts[2:].sum() > 0.25 * n * steps                 # mostly a test of plastic steps
+    assert cuts < 1e-3 * n * steps      # increments up to ~50 P/λ: the local solve rarely folds
+    if law == "relaxation":
+        assert counts[1 + fm.STATUS_PROJECTED] == 0             # admissible by construction
+
+
+def _path(n, graded=False):
+    """A strain path (biaxial compression, shear, spin) to total strain 0.02 in n steps."""
+    t = np.linspace(0.0, 1.0, n + 1)
+    if graded:
+        t = t ** 1.5                            # the same path, parametrized differently
+    total = lambda x: 0.02 * np.stack([0.3 * x, -x, 0.4 * np.sin(3 * x)], 1)   # noqa: E731
+    de = np.diff(total(t), axis=0)
+    dw = np.diff(0.01 * np.sin(2 * t))
+    return de, dw
+
+
+def _run(prm, n, graded=False):
+    de, dw = _path(n, graded)
+    stress = stress_at(1.0, 0.41, 0.0)[None, :]
+    state = _state(0.82, 0.95, 0.2, 0.4)[None, :]
+    for k in range(n):
+        stress, state, _, status = update(prm, stress, state, de[k:k + 1], dw[k:k + 1])
+        assert status[0] != fm.STATUS_FAILED
+    return np.concatenate([stress[0], state[0, 1:]])
+
+
+def test_step_size_convergence_is_first_order_and_path_not_time():
+    # Acceptance 6: backward Euler is first order in the step size.
+    prm = model_params(lam=480.0, nu=0.2, **ANISO)          # K = 300, G = 200
+    ns = [40, 80, 160, 320, 640]
+    runs = [_run(prm, n) for n in ns]
+    diffs = [np.abs(runs[i] - runs[i + 1]).max() for i in range(len(ns) - 1)]
+    orders = np.log2(np.array(diffs[:-1]) / np.array(diffs[1:]))
+    assert np.all((orders > 0.85) & (orders < 1.2)), orders
+    # The same path parametrized as t^1.5: a different step distribution, same limit.
+    graded = [_run(prm, n, graded=True) for n in (160, 640)]
+    assert np.abs(graded[1] - runs[-1]).max() < 2 * diffs[-1]
+    assert np.abs(graded[1] - runs[-1]).max() < 0.5 * np.abs(graded[0] - runs[2]).max()
+
+
+def _strain_path(n, c0):
+    """A rotating biaxial strain path with slight dilation/compaction (dense or loose start)."""
+    t = np.linspace(0.0, 1.0, n)
+    de = np.stack([np.full(n, 4e-4), np.full(n, -5e-4), 1e-4 * np.sin(6 * t)], axis=1)
+    return de, 3e-4 * np.cos(4 * t)
+
+
+@pytest.mark.parametrize("frozen_a", [False, True])
+@pytest.mark.parametrize("c0", [0.84, 0.78])
+def test_reduces_to_tier1_with_isotropic_plane_angles(c0, frozen_a):
+    # Acceptance 3: a2 = b2 = 0 (and a1 = b1 = 0, or a1 ≠ 0 with A frozen: all fabric
+    # coefficients 0), an ANISOTROPIC start fabric, spin, dense and loose: the same path as
+    # tier 1 to 1e-8.
+    if frozen_a:
+        a0 = 0.955
+        tier2 = dict(a0_deg=25.0 - 6.0 * a0, a1_deg=6.0, b0_deg=-2.0 * a0, b1_deg=2.0,
+                     kappa_a=0.0, k_c=0.0, k_o=0.0, a3_deg=40.0, b3_deg=-10.0)
+    else:
+        tier2 = dict(a3_deg=40.0, b3_deg=-10.0)
+    params = model_params(lam=1000.0, nu=0.2, **tier2)
+    de, dw = _strain_path(400, c0)
+    s1 = s2 = np.array([[-1.0, -1.0, 0.0]])
+    q1 = np.array([[0.0, c0]])
+    q2 = np.array([[0.0, c0, 0.955, 0.15, -0.08]])
+    worst = np.zeros(4)
+    for k in range(len(dw)):
+        s1, q1, t1, st1 = update(params, s1, q1, de[k:k + 1], dw[k:k + 1], tier=1)
+        s2, q2, t2, st2 = update(params, s2, q2, de[k:k + 1], dw[k:k + 1], tier=2)
+        assert st1[0] == st2[0] or {st1[0], st2[0]} == {fm.STATUS_FACE, fm.STATUS_PROJECTED}
+        worst = np.maximum(worst, [np.abs(s1 - s2).max(), abs(q1[0, 1] - q2[0, 1]),
+                                   abs(q1[0, 0] - q2[0, 0]), np.abs(t1 - t2).max() / 1000.0])
+    assert worst[0] < 1e-8 and worst[1] < 1e-10 and worst[2] < 1e-10 and worst[3] < 1e-8
+    assert (st1 == fm.STATUS_FACE).all()                 # the path is plastic to the end
+
+
+def test_rotating_principal_axes_at_fixed_p_and_r_flow_only_with_fabric():
+    # Acceptance 3: R/P below tier 1's sin φ: tier 1 stays rigid (elastic, no plastic strain)
+    # while tier 2 with B > 0 yields where the stress axes meet the weak planes of the fabric.
+    params = model_params(lam=1000.0, nu=0.2, a2_deg=15.0)
+    bulk, shear = params.array(2)[:2]
+    c_inv = np.linalg.inv([[bulk + shear, bulk - shear, 0], [bulk - shear, bulk + shear, 0],
+                           [0, 0, shear]])
+    r = 0.9 * np.sin(np.radians(25.0))
+    angles = np.linspace(0.0, np.pi, 181)
+    de = np.diff(np.array([stress_at(1.0, r, a) for a in angles]), axis=0) @ c_inv.T
+    runs = {}
+    for tier, state in ((1, [0.0, 0.81]), (2, [0.0, 0.81, 0.955, 0.3, 0.0])):
+        s, q = stress_at(1.0, r, 0.0)[None, :], np.array([state])
+        statuses = []
+        for k in range(len(de)):
+            s, q, _, st = update(params, s, q, de[k:k + 1], np.zeros(1), tier=tier)
+            statuses.append(st[0])
+        runs[tier] = (s[0], q[0], np.array(statuses))
+    s1, q1, st1 = runs[1]
+    assert (st1 == fm.STATUS_ELASTIC).all() and q1[0] == 0.0
+    assert s1 == pytest.approx(stress_at(1.0, r, np.pi), abs=1e-12)   # followed exactly
+    s2, q2, st2 = runs[2]
+    assert (st2 == fm.STATUS_FACE).sum() > 10 and q2[0] > 1e-4        # tier 2 flows
+    assert np.abs(s2 - stress_at(1.0, r, np.pi)).max() > 1e-2         # and leaves the path

@@ -1,0 +1,59 @@
+"""Measurements: Love–Weber sign and magnitude, fabric, rattlers, g2, histogram."""
+import math
+
+import numpy as np
+
+from dem import neighbours
+from dem.contact_law import ContactLaw
+from dem.integrator import dynamics, evaluate_forces
+from dem.measure import g2_exact, measure, normal_histogram, rattler_mask, Contacts
+from dem.state import new_state
+
+
+def square_lattice(k=6, spacing=0.99, r=0.5):
+    """k x k discs on a square lattice, overlapping their 4 neighbours by 1 - spacing."""
+    g = (np.stack(np.meshgrid(np.arange(k), np.arange(k), indexing="ij"), -1).reshape(-1, 2) + 0.5) / k
+    h = np.diag([k * spacing, k * spacing])
+    st = new_state(np.full(k * k, r), g, h)
+    law = ContactLaw(kn=1e3, e=0.5, mu=0.5)
+    dyn = dynamics(law, st.mass.min(), 1e-3)
+    neighbours.rebuild(st, dyn.skin)
+    evaluate_forces(st, dyn)
+    return st, law
+
+
+def test_love_weber_is_compressive_negative_with_the_closed_form_pressure():
+    st, law = square_lattice()
+    m = measure(st, law)
+    # each disc: 2 contacts (x and y) counted once, fn = kn δ, |l| = spacing
+    fn, l, area = law.kn * 0.01, 0.99, 0.99**2
+    assert m["sxx"] < 0 and m["syy"] < 0 and m["P"] > 0
+    assert math.isclose(m["sxx"], -fn * l / area, rel_tol=1e-12)
+    assert math.isclose(m["sxx"], m["syy"], rel_tol=1e-12) and abs(m["sxy"]) < 1e-12
+    assert np.allclose(st.stress, [m["sxx"], m["syy"], m["sxy"]], rtol=1e-12)
+
+
+def test_fabric_of_the_square_lattice():
+    st, law = square_lattice()
+    m = measure(st, law)
+    # 4 contacts per disc along x and y: z = 4, A = 4/π; the 4th harmonic is invisible to
+    # the second-order fabric, so B = 0
+    assert m["z"] == 4 and math.isclose(m["A"], 4 / math.pi) and abs(m["Bc"]) < 1e-12
+    assert math.isclose(m["trF_V"], 4 * math.pi * 0.25 / 0.99**2, rel_tol=1e-12)
+    theta, p = normal_histogram(Contacts(st).n, st.n)
+    assert math.isclose(np.sum(p) * (theta[1] - theta[0]), 4.0)
+
+
+def test_rattlers_are_removed_repeatedly():
+    # a chain 0-1-2 hanging off a triangle 3-4-5: 0 has one contact, then 1, then 2
+    i = np.array([0, 1, 2, 3, 4, 3])
+    j = np.array([1, 2, 3, 4, 5, 5])
+    assert rattler_mask(6, i, j, 2).tolist() == [True, True, True, False, False, False]
+
+
+def test_g2_exact_reproduces_seed_002_values():
+    bid = np.r_[np.full(1000, 0.25), np.full(1000, 0.75)]
+    assert round(g2_exact(bid), 3) == 1.223
+    uni = 0.5 * (0.5 + (np.arange(100_000) + 0.5) / 100_000)
+    assert round(g2_exact(uni), 3) == 1.085
+    assert math.isclose(g2_exact(np.full(10, 0.5)), 1.0)

@@ -1,0 +1,98 @@
+"""`contfab point` and `contfab bench point`: the files a run writes (the DEM's columns,
+sidecar, plots), clean errors that leave no file behind, and the bench's figures."""
+import csv
+import json
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from contfab import material_point as mp
+from contfab.bench import point as bench_point
+from contfab.cli import main
+from contfab.models import tiers
+from dem.history import HISTORY_COLUMNS
+
+
+def read_csv(path):
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    return rows[0], rows[1:]
+
+
+def test_point_writes_the_dem_columns_a_sidecar_and_plots(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["point", "biaxial", "--out", str(out), "--tier", "1",
+                 "--increment", "2.5e-3"]) == 0
+    printed = capsys.readouterr().out
+    assert str(out / "history.csv") in printed and str(out / "history.json") in printed
+    header, rows = read_csv(out / "history.csv")
+    assert tuple(header) == HISTORY_COLUMNS + mp.EXTRA_COLUMNS
+    assert len(rows) == 101                       # τ = 0 and every 0.0025 to 0.25
+    fabric = [header.index(c) for c in ("z", "A", "Bc", "Bs", "B", "theta_p")]
+    assert all(row[i] == "" for row in rows for i in fabric)       # tier 1: no fabric
+    sxx = np.array([float(r[header.index("sxx")]) for r in rows])
+    assert np.abs(sxx + 1.0).max() < 1e-11
+    assert float(rows[-1][header.index("eps_yy")]) == pytest.approx(-0.25, abs=1e-12)
+    meta = json.loads((out / "history.json").read_text())
+    assert meta["tier"] == 1 and meta["path"]["name"] == "biaxial"
+    assert meta["params"]["regularization"]["lambda"] == 1000.0
+    assert meta["increments"]["increment"] == 2.5e-3 and meta["increments"]["taken"] == 100
+    assert meta["versions"]["contfab"] and meta["timing"]["total_s"] > 0
+    assert (out / "history.png").stat().st_size > 10_000
+    assert sorted(p.name for p in out.iterdir()) == ["history.csv", "history.json",
+                                                     "history.png"]
+
+
+def test_probe_family_writes_one_history_per_probe_and_the_envelope(tmp_path):
+    out = tmp_path / "probes"
+    assert main(["point", "stress_probes", "--out", str(out), "--tier", "0"]) == 0
+    assert len(list(out.glob("history_*.csv"))) == 16
+    assert (out / "response.png").is_file()
+    header, rows = read_csv(out / "history_4.csv")                  # the 90° probe: Δσyy > 0
+    syy = float(rows[-1][header.index("syy")])
+    assert syy == pytest.approx(-1.0 + 0.02, abs=1e-12)
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["point", "nope"], ["unknown loading path 'nope'", "biaxial"]),
+    (["point", "biaxial", "--tier", "9"], ["tier = 9", "accepted"]),
+    (["point", "biaxial", "--increment", "-1"], ["increment = -1.0", "(0, inf)"]),
+    (["point", "biaxial", "--params", "BAD"], ["phi_deg = 95", "(0, 90)"]),
+    (["point", "biaxial", "--params", "MISSING"], ["No such file"]),
+])
+def test_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, argv, words):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("tier = 0\n[regularization]\nlambda = 1e3\np_ref = 1.0\n"
+                   "[tier0]\nphi_deg = 95.0\n")
+    argv = [str(bad) if a == "BAD" else str(tmp_path / "none.toml") if a == "MISSING" else a
+            for a in argv]
+    out = tmp_path / "out"
+    assert main(argv + ["--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1
+    for w in words:
+        assert w in err
+    assert not out.exists()
+
+
+def test_unfollowable_path_writes_nothing(tmp_path, capsys):
+    path = tmp_path / "too_far.toml"
+    path.write_text('name = "too_far"\n[[stage]]\nname = "ramp"\nlength = 0.1\n'
+                    'L = { xy = 0.0, yx = 0.0 }\n'
+                    'sigma = { xx = -1.0, yy = { target = -3.0, ramp = true } }\n')
+    out = tmp_path / "out"
+    assert main(["point", str(path), "--tier", "0", "--out", str(out)]) == 2
+    assert "cannot be reached" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_bench_point_figures(monkeypatch):
+    monkeypatch.setattr(bench_point, "TRADE_INCREMENTS", (2.5e-3, 1.25e-3))
+    monkeypatch.setattr(bench_point, "REFERENCE_FRACTION", 1.0 / 8.0)
+    figures = bench_point.run(SimpleNamespace(repeats=1))
+    for tier in sorted(tiers.KERNELS):
+        assert figures[f"tier{tier}_biaxial_us_per_increment"] > 0
+        assert figures[f"tier{tier}_isochoric_shear_updates_per_increment"] == 1.0
+    coarse, fine = (figures[f"tier1_biaxial_h{h:.4g}_error_c"] for h in (2.5e-3, 1.25e-3))
+    assert 1.5 < coarse / fine < 3.5          # first order against a reference at h/8

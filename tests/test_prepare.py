@@ -1,0 +1,30 @@
+"""Preparation: relaxed samples, dense vs loose, refusals (acceptance 7)."""
+import numpy as np
+import pytest
+
+from conftest import make_dynamics
+from dem.particles import ParticleError
+from dem.prepare import C_MAX, PreparationError, check_configuration, compress_to_fraction, random_gas
+
+
+def test_prepared_samples_meet_thresholds_and_friction_loosens(packing_frictionless, packing_frictional):
+    for st in (packing_frictionless, packing_frictional):
+        assert abs(-0.5 * (st.stress[0] + st.stress[1]) - 1.0) < 1e-3
+        assert abs(st.stress[2]) < 1e-3
+    # μ_prep = 0 packs denser than μ_prep = 0.5 (2D random packings: ~0.84 vs ~0.80)
+    assert packing_frictionless.packing_fraction > packing_frictional.packing_fraction + 0.02
+    assert 0.82 < packing_frictionless.packing_fraction < 0.86
+
+
+def test_target_fraction_above_jamming_range_is_refused():
+    rng = np.random.default_rng(0)
+    st = random_gas(np.full(50, 0.5), 0.3, rng)
+    with pytest.raises(PreparationError, match=rf"0.95 .*accepted \(0, {C_MAX}\]"):
+        compress_to_fraction(st, make_dynamics(st), 0.95, 1e-2)
+
+
+def test_overlapping_explicit_configuration_is_refused():
+    x = np.array([[1.0, 1.0], [1.8, 1.0], [4.0, 4.0]])
+    with pytest.raises(ParticleError, match=r"discs 0 and 1 overlap by 0.2"):
+        check_configuration(np.full(3, 0.5), x, np.diag([6.0, 6.0]))
+    check_configuration(np.full(3, 0.5), x + [[0, 0], [0.3, 0], [0, 0]], np.diag([6.0, 6.0]))

@@ -1,0 +1,32 @@
+"""Running a path: rates, stop conditions, history columns, fabric along the load."""
+import numpy as np
+
+from conftest import make_dynamics
+from dem.conventions import fabric_polar
+from dem.history import HISTORY_COLUMNS
+from dem.paths import parse_path
+from dem.rve import COLUMNS, PathRunner
+
+
+def test_biaxial_stage_follows_rate_stops_and_aligns_fabric(packing_frictional):
+    st = packing_frictional.copy()
+    dyn = make_dynamics(st, gdot=1e-2)
+    path = parse_path({"name": "b", "stage": [
+        {"length": 0.1, "output_every": 0.005, "L": {"yy": -1.0, "xy": 0.0, "yx": 0.0},
+         "sigma": {"xx": -1.0}, "until": {"eps_yy": -0.04}}]})
+    runner = PathRunner(path, dyn, 1e-2)
+    run = runner.run(st, runner.start(st))
+    rows = run.rows
+    assert COLUMNS[:len(HISTORY_COLUMNS)] == HISTORY_COLUMNS
+    last = rows[-1]
+    # stopped at the first check past eps_yy = -0.04 (checks every 1/10 output interval)
+    assert -0.04 - 0.0006 < last["eps_yy"] <= -0.04
+    assert all(abs(r["sxx"] + 1.0) < 0.02 for r in rows)
+    assert last["RP"] > 0.15 and last["syy"] < -1.3
+    # contact normals gather along the compression axis y: θp near ±π/2
+    assert abs(abs(last["theta_p"]) - np.pi / 2) < 0.3 and last["B"] > 0.05
+    assert all(r["admissibility"] >= 0 for r in rows)
+    b, _ = fabric_polar(last["Bc"], last["Bs"])
+    assert np.isclose(b, last["B"]) and np.isclose(last["z"], np.pi * last["A"])
+    assert abs(last["energy_error"]) < 3e-3 * last["W_external"]
+    assert 0.5e-2 < last["I"] < 5e-2           # I follows the imposed rate (I = 1e-2 here)

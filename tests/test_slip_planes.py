@@ -1,0 +1,159 @@
+"""Tier 2 yield function and flow over slip planes: closed forms, brute force, derivatives."""
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from conftest import TIER1, stress_at
+from contfab.models import slip_planes as sp
+
+C_STAR = TIER1["c_star"]
+I_A0, I_DPHI, I_DPSI, I_PHILO, I_PHIHI = 8, 3, 4, 6, 7
+
+
+def _flow(prm, s, c, a=3.0 / np.pi, bc=0.0, bs=0.0, n_search=8):
+    """(yf, pl) at stress s with the planes at their exact maxima."""
+    fab = sp.fabric_terms(c, a, bc, bs, prm)
+    pl = np.empty((2, sp.N_PL))
+    yf = np.empty(sp.N_YF)
+    theta = np.array([0.4, -0.4])
+    sp.yield_and_flow(s[0], s[1], s[2], fab, prm[16], True, n_search, theta, pl, yf)
+    return yf, pl
+
+
+def _macro(n):
+    """(tr, ε1 - ε2, direction of ε1) of a Voigt strain with engineering shear."""
+    half = np.hypot(0.5 * (n[0] - n[1]), 0.5 * n[2])
+    return n[0] + n[1], 2.0 * half, 0.5 * np.arctan2(0.5 * n[2], 0.5 * (n[0] - n[1]))
+
+
+@settings(max_examples=150, deadline=None)
+@given(p=st.floats(0.01, 100.0), ratio=st.floats(0.0, 2.0), alpha=st.floats(-3.2, 3.2),
+       c=st.floats(0.70, 0.90), dphi=st.floats(0.0, 200.0), dpsi=st.floats(0.0, 300.0),
+       phi_star=st.floats(0.5, 60.0))
+def test_isotropic_fabric_gives_tier1_cone_and_tier1_dilatancy(tier2_prm, p, ratio, alpha, c,
+                                                               dphi, dpsi, phi_star):
+    # a1 = a2 = b1 = b2 = 0, a0 = φ*, b0 = 0: every plane has tier 1's φ(c), ψ(c); f must be
+    # (R - sin φ P)/cos φ and the flow coaxial with sin ψ = tr/(ε1 - ε2) (seed eq. 1.2).
+    tier1 = dict(TIER1, phi_star_deg=phi_star, dphi_dc_deg=dphi, dpsi_dc_deg=dpsi,
+                 phi_min_deg=0.1)
+    prm = tier2_prm(nu=0.0, tier1=tier1, a0_deg=phi_star)    # ν = 0: any φ* passes tier 1's check
+    r = ratio * p
+    s = stress_at(p, r, alpha)
+    phi = np.clip(prm[I_A0] + prm[I_DPHI] * (c - C_STAR), prm[I_PHILO], prm[I_PHIHI])
+    psi = np.clip(prm[I_DPSI] * (c - C_STAR), -phi, phi)
+    yf, _ = _flow(prm, s, c, bc=0.3, bs=-0.2)        # anisotropic fabric, but a2 = b2 = 0
+    assert yf[sp.YF_F] == pytest.approx((r - np.sin(phi) * p) / np.cos(phi), abs=1e-12 * p)
+    if r > 1e-6 * p:            # at R = 0 the flow direction is undefined (as in tier 1)
+        tr, diff, direction = _macro(yf[sp.YF_N:sp.YF_N + 3])
+        assert tr / diff == pytest.approx(np.sin(psi), abs=1e-12)
+        assert np.sin(2 * (direction - alpha)) == pytest.approx(0.0, abs=1e-10)
+        assert np.cos(2 * (direction - alpha)) > 0.0      # ε1 along σ1 (tension positive)
+
+
+def _brute_arc_maxima(prm, s, c, a, bc, bs, n=200001):
+    """Max of h = |τ| + tan φ(θ) σn over each sign of τ, by a dense scan (independent code)."""
+    m, d, sxy = 0.5 * (s[0] + s[1]), 0.5 * (s[0] - s[1]), s[2]
+    alpha = 0.5 * np.arctan2(sxy, d)
+    b, theta_p = np.hypot(bc, bs), 0.5 * np.arctan2(bs, bc)
+    out = []
+    for lo in (0.0, -np.pi):                       # u = 2(θ - α): τ < 0 on (0, π), τ > 0 on (-π, 0)
+        theta = alpha + 0.5 * np.linspace(lo, lo + np.pi, n)
+        sn = m + d * np.cos(2 * theta) + sxy * np.sin(2 * theta)
+        tau = -d * np.sin(2 * theta) + sxy * np.cos(2 * theta)
+        phi = (prm[8] + prm[3] * (c - C_STAR) + prm[9] * a
+               + prm[10] * b * np.cos(2 * (theta - theta_p) + prm[11]))
+        out.append(np.max(np.abs(tau) + np.tan(np.clip(phi, prm[6], prm[7])) * sn))
+    return out
+
+
+@settings(max_examples=40, deadline=None)
+@given(ratio=st.floats(0.3, 0.6), alpha=st.floats(0.0, np.pi), b_frac=st.floats(0.0, 0.95),
+       theta_p=st.floats(0.0, np.pi), a3=st.floats(-90.0, 90.0), c=st.floats(0.78, 0.84))
+def test_arc_maxima_are_exact_and_f_is_their_softmax_mean(tier2_prm, ratio, alpha, b_frac,
+                                                         theta_p, a3, c):
+    prm = tier2_prm(a1_deg=5.0, a2_deg=15.0, a3_deg=a3, b2_deg=10.0)
+    a = 0.95
+    b = b_frac * (1.0 - np.pi / 6 * a) / (np.sqrt(3) / 4)       # admissible
+    bc, bs = b * np.cos(2 * theta_p), b * np.sin(2 * theta_p)
+    s = stress_at(1.0, ratio, alpha)
+    yf, pl = _flow(prm, s, c, a, bc, bs)
+    brute = _brute_arc_maxima(prm, s, c, a, bc, bs)
+    assert pl[0, sp.PL_H] == pytest.approx(brute[0], abs=1e-9)
+    assert pl[1, sp.PL_H] == pytest.approx(brute[1], abs=1e-9)
+    # f = Σ w h_k <= max h, short of it by at most max_x x/(1 + e^x) · s/β = 0.2785 s/β.
+    scale = np.hypot(0.5 * (s[0] + s[1]), ratio)
+    gap = max(brute) - yf[sp.YF_F]
+    assert -1e-9 <= gap <= 0.27847 * scale / prm[16] + 1e-9
+
+
+@settings(max_examples=40, deadline=None)
+@given(ratio=st.floats(0.2, 0.9), alpha=st.floats(0.0, np.pi), b=st.floats(0.0, 0.5),
+       theta_p=st.floats(0.0, np.pi), c=st.floats(0.76, 0.86))
+def test_derivatives_match_central_differences(tier2_prm, ratio, alpha, b, theta_p, c):
+    # States from inside the cone to beyond it (φ ≈ 25°: R/P = 0.42 at yield), where the
+    # local Newton and the tangent use them. (Far inside the cone with strong anisotropy an
+    # arc maximum can sit on the arc's end, τ = 0, where the envelope theorem does not hold;
+    # such states are elastic.)
+    prm = tier2_prm(a1_deg=3.0, a2_deg=12.0, a3_deg=20.0, b0_deg=2.0, b1_deg=2.0, b2_deg=8.0,
+                    b3_deg=-30.0)
+    fab_args = (0.9, b * np.cos(2 * theta_p), b * np.sin(2 * theta_p))
+    s = stress_at(1.0, ratio, alpha)
+    yf, _ = _flow(prm, s, c, *fab_args, n_search=16)
+    f, n, tr = yf[sp.YF_F], yf[sp.YF_N:sp.YF_N + 3], yf[sp.YF_TR]
+    h = 1e-5
+    for j in range(3):
+        e = np.zeros(3)
+        e[j] = h
+        dp, _ = _flow(prm, s + e, c, *fab_args, n_search=16)
+        dm, _ = _flow(prm, s - e, c, *fab_args, n_search=16)
+        fd = (dp - dm) / (2 * h)
+        assert yf[sp.YF_FS + j] == pytest.approx(fd[sp.YF_F], abs=1e-7)
+        assert yf[sp.YF_NS + j:sp.YF_NS + 9:3] == pytest.approx(fd[sp.YF_N:sp.YF_N + 3],
+                                                                rel=1e-6, abs=1e-6)
+        assert yf[sp.YF_TRS + j] == pytest.approx(fd[sp.YF_TR], rel=1e-6, abs=1e-6)
+    # c and the fabric act through the angle coefficients p (slip_planes.fabric_terms_jacobian)
+    dpz = np.empty((sp.N_P, 4))
+    sp.fabric_terms_jacobian(prm, dpz)
+    z0 = np.array([c, *fab_args])
+    for z in range(4):
+        e = np.zeros(4)
+        e[z] = h
+        dp, _ = _flow(prm, s, *(z0 + e), n_search=16)
+        dm, _ = _flow(prm, s, *(z0 - e), n_search=16)
+        fd = (dp - dm) / (2 * h)
+        assert yf[sp.YF_FP:sp.YF_FP + 3] @ dpz[:3, z] == pytest.approx(fd[sp.YF_F], abs=1e-7)
+        assert yf[sp.YF_NP:sp.YF_NP + 18].reshape(3, 6) @ dpz[:, z] == pytest.approx(
+            fd[sp.YF_N:sp.YF_N + 3], rel=1e-6, abs=1e-6)
+        assert yf[sp.YF_TRP:sp.YF_TRP + 6] @ dpz[:, z] == pytest.approx(fd[sp.YF_TR], abs=1e-6)
+    # A cone: f homogeneous of degree 1 and N of degree 0 in σ (Euler's relations).
+    assert yf[sp.YF_FS:sp.YF_FS + 3] @ s == pytest.approx(f, abs=1e-13)
+    assert yf[sp.YF_NS:sp.YF_NS + 9].reshape(3, 3) @ s == pytest.approx(np.zeros(3), abs=1e-12)
+    assert np.isfinite(n).all() and np.isfinite(tr)
+
+
+@pytest.mark.parametrize("theta_p", [0.0, 0.7, 2.0])
+def test_nothing_singular_at_isotropy(tier2_prm, theta_p):
+    prm = tier2_prm(a2_deg=15.0, b2_deg=10.0)
+    s = stress_at(1.0, 0.4, 0.3)
+    iso, _ = _flow(prm, s, 0.81, 0.95, 0.0, 0.0)
+    tiny, _ = _flow(prm, s, 0.81, 0.95, 1e-12 * np.cos(2 * theta_p), 1e-12 * np.sin(2 * theta_p))
+    assert np.isfinite(iso).all()
+    assert np.abs(iso - tiny).max() < 1e-9
+
+
+def test_softmax_shortfall_scales_as_one_over_sharpness(tier2_prm):
+    # The measured effect of β (DESIGN: "measure the effect of the sharpness parameter"):
+    # f falls short of max h by w_min·Δh <= 0.2785 s/β, attained when Δh = 1.2785 s/β. Build a
+    # state with one arc clearly stronger and check the shortfall and the flow's mixing.
+    s = stress_at(1.0, 0.45, 0.2)
+    shortfalls = {}
+    for beta in (10.0, 100.0, 1000.0):
+        prm = tier2_prm(a2_deg=15.0, sharpness=beta)
+        yf, pl = _flow(prm, s, 0.81, 0.95, 0.3, 0.1)
+        scale = np.hypot(-1.0, 0.45)
+        dh = abs(pl[0, sp.PL_H] - pl[1, sp.PL_H]) / scale
+        w_min = 1.0 / (1.0 + np.exp(beta * dh))
+        shortfalls[beta] = (max(pl[:, sp.PL_H]) - yf[sp.YF_F]) / scale
+        assert shortfalls[beta] == pytest.approx(w_min * dh, rel=1e-9)
+        assert shortfalls[beta] <= 0.27847 / beta
+    assert shortfalls[1000.0] < shortfalls[100.0] < shortfalls[10.0]
