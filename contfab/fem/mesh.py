@@ -139,6 +139,47 @@ def tensor(xs, ys, kind: str = "tri"):
     })
 
 
+def delaunay_rectangle(width: float, height: float, h: float, seed: int = 0, jitter: float = 0.3):
+    """Unstructured triangles on [0, width] × [0, height], element size about ``h``.
+
+    The Delaunay triangulation of a jittered grid of interior points (each moved by up
+    to ``jitter``·h, kept 0.3h from the sides) plus evenly spaced side points: no
+    preferred direction, unlike a structured mesh whose diagonals attract shear bands.
+    Sides named left/right/bottom/top.
+    """
+    from scipy.spatial import Delaunay
+
+    if not (h > 0 and width > 2 * h and height > 2 * h):
+        raise MeshError(f"element size h = {h:g} must be > 0 and below half the smaller side "
+                        f"of the {width:g} x {height:g} rectangle")
+    if not 0 <= jitter < 0.5:
+        raise MeshError(f"jitter = {jitter:g} is outside the accepted range [0, 0.5)")
+    nx, ny = int(round(width / h)), int(round(height / h))
+    xs, ys = np.linspace(0, width, nx + 1), np.linspace(0, height, ny + 1)
+    sides = np.vstack([np.column_stack((xs, np.zeros_like(xs))),
+                       np.column_stack((xs, np.full_like(xs, height))),
+                       np.column_stack((np.zeros(ny - 1), ys[1:-1])),
+                       np.column_stack((np.full(ny - 1, width), ys[1:-1]))])
+    gx, gy = np.meshgrid(xs[1:-1], ys[1:-1], indexing="ij")
+    rng = np.random.default_rng(seed)
+    inner = np.column_stack((gx.ravel(), gy.ravel()))
+    inner += rng.uniform(-jitter, jitter, inner.shape) * np.array([width / nx, height / ny])
+    inner[:, 0] = np.clip(inner[:, 0], 0.3 * h, width - 0.3 * h)
+    inner[:, 1] = np.clip(inner[:, 1], 0.3 * h, height - 0.3 * h)
+    points = np.vstack((sides, inner))
+    cells = Delaunay(points).simplices
+    a = signed_corner_areas(points, cells)[:, 0]
+    cells[a < 0] = cells[a < 0][:, ::-1]
+    mesh = from_arrays(points, cells)
+    tol = 1e-9 * max(width, height)
+    return name_boundaries(mesh, {
+        "left": lambda x: np.abs(x[0]) < tol,
+        "right": lambda x: np.abs(x[0] - width) < tol,
+        "bottom": lambda x: np.abs(x[1]) < tol,
+        "top": lambda x: np.abs(x[1] - height) < tol,
+    })
+
+
 def name_boundaries(mesh, predicates: Mapping[str, Callable[[np.ndarray], np.ndarray]]):
     """Add named boundaries: boundary facets whose midpoint ``x`` (shape (2, nf)) passes.
 

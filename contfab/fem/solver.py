@@ -111,23 +111,39 @@ class Stage:
 
 @dataclass(frozen=True)
 class NewtonOptions:
-    """Newton tolerances and step control (growth after <= ``easy_iter`` iterations)."""
+    """Newton tolerances, step control and line search.
+
+    A step is converged when the relative free residual is <= ``tol``, or <= ``tol_stall``
+    once it stops decreasing (halved in none of the last three iterations) or at the
+    last iteration: at a softening peak, points flipping between elastic unloading and
+    plastic loading made Newton cycle at ~5e-6 forever (biaxial case). Records keep the
+    residual sequence, so such steps are visible (:attr:`StepRecord.stalled`).
+    A step grows by ``grow`` after <= ``easy_iter`` iterations and is cut by ``cut`` on
+    failure. ``line_search`` halvings of a correction are tried when it does not reduce
+    the free residual (apex/face switching made plain Newton cycle on the N_γ footing);
+    ``spin_step`` is the difference step of the spin tangent (0: off).
+    """
 
     tol: float = 1e-8
+    tol_stall: float = 1e-5
     max_iter: int = 15
     grow: float = 1.5
     cut: float = 0.25
-    easy_iter: int = 5
+    easy_iter: int = 8
     diverge: float = 1e6
     spin_step: float = 1e-7
+    line_search: int = 4
 
     def __post_init__(self):
-        if not 0 < self.tol < 1:
-            raise ValueError(f"tol = {self.tol} must lie in (0, 1)")
+        if not 0 < self.tol <= self.tol_stall < 1:
+            raise ValueError(f"need 0 < tol <= tol_stall < 1, got tol = {self.tol}, "
+                             f"tol_stall = {self.tol_stall}")
         if self.max_iter < 1:
             raise ValueError(f"max_iter = {self.max_iter} must be >= 1")
         if not self.grow >= 1 or not 0 < self.cut < 1:
             raise ValueError(f"need grow >= 1 and 0 < cut < 1, got {self.grow}, {self.cut}")
+        if self.line_search < 0:
+            raise ValueError(f"line_search = {self.line_search} must be >= 0")
         if not 0 <= self.spin_step < 1e-3:
             raise ValueError(f"spin_step = {self.spin_step} must lie in [0, 1e-3)")
 
@@ -142,9 +158,16 @@ class StepRecord:
     residuals: list[float]
     cuts: int = 0
 
+    tol: float = 1e-8
+
     @property
     def iterations(self) -> int:
         return len(self.residuals)
+
+    @property
+    def stalled(self) -> bool:
+        """Accepted at the stall tolerance, not the Newton tolerance."""
+        return self.residuals[-1] > self.tol
 
 
 class ConstrainedSystem:
@@ -228,7 +251,8 @@ class Solver:
                 continue
             self.committed = trial
             t += dt
-            record = StepRecord(stage.name, t, dt, residuals, cuts=len(attempts))
+            record = StepRecord(stage.name, t, dt, residuals, cuts=len(attempts),
+                                tol=self.options.tol)
             self.records.append(record)
             attempts = []
             yield record
@@ -246,26 +270,8 @@ class Solver:
         r = disc.internal_force(c.stress) - f_ext
         tangent, spin_tangent = c.tangent, c.spin_tangent
         residuals: list[float] = []
-        for it in range(opt.max_iter + 1):
-            if it > 0:
-                dstrain, dspin = disc.strain(u - c.u)
-                res = self.material.update(c.stress, c.state, dstrain, dspin)
-                failed = int(np.sum(res.status < 0))
-                if failed:
-                    return None, residuals, f"constitutive update failed at {failed} points"
-                r = disc.internal_force(res.stress) - f_ext
-                ref = max(norm(f_ext), norm(r[system.fixed])) or 1.0
-                rel = norm(r[system.free]) / ref
-                residuals.append(rel)
-                if not np.isfinite(rel) or rel > opt.diverge:
-                    return None, residuals, f"residual diverged ({rel:.3g})"
-                if it == opt.max_iter and rel > opt.tol:
-                    return None, residuals, f"no convergence in {opt.max_iter} iterations"
-                tangent = res.tangent
-                spin_tangent = self._spin_tangent(c.stress, c.state, dstrain, dspin, res)
-                if rel <= opt.tol:
-                    return FieldState(stage.name, t, u, res.stress, res.state, tangent,
-                                      spin_tangent, res.status, r), residuals, ""
+        current = None
+        for it in range(opt.max_iter):
             try:
                 du = system.solve(disc.tangent(tangent, spin_tangent), r,
                                   target - u[system.fixed])
@@ -273,8 +279,46 @@ class Solver:
                 return None, residuals, f"singular tangent ({exc}): a mechanism is free to move"
             if not np.all(np.isfinite(du)):
                 return None, residuals, "non-finite Newton correction"
-            u = u + du
-        raise AssertionError("unreachable")
+            trial = self._line_search(c, system, f_ext, u, du, current)
+            if trial is None:
+                return None, residuals, "constitutive update failed (status -1) along the step"
+            u, current = trial[0], trial[1:]
+            res, r, dstrain, dspin, _, rel = current
+            residuals.append(rel)
+            if not np.isfinite(rel) or rel > opt.diverge:
+                return None, residuals, f"residual diverged ({rel:.3g})"
+            tangent = res.tangent
+            spin_tangent = self._spin_tangent(c.stress, c.state, dstrain, dspin, res)
+            stalled = len(residuals) > 3 and rel > 0.5 * min(residuals[-4:-1])
+            if rel <= opt.tol or (rel <= opt.tol_stall and (stalled or it == opt.max_iter - 1)):
+                return FieldState(stage.name, t, u, res.stress, res.state, tangent,
+                                  spin_tangent, res.status, r), residuals, ""
+        return None, residuals, f"no convergence in {opt.max_iter} iterations"
+
+    def _line_search(self, c: FieldState, system: ConstrainedSystem, f_ext, u, du, current):
+        """u + α du, α = 1, 1/2, ... (``line_search`` halvings) until |r_f| decreases.
+
+        The first correction of a step (``current`` None) carries the prescribed
+        displacement increment and is taken whole. Returns (u, update result, r,
+        strain, spin, |r_f|, relative residual), or None if the update fails at every α.
+        """
+        alpha, best = 1.0, None
+        for _ in range(self.options.line_search + 1):
+            u_try = u + alpha * du
+            dstrain, dspin = self.disc.strain(u_try - c.u)
+            res = self.material.update(c.stress, c.state, dstrain, dspin)
+            if not np.any(res.status < 0):
+                r = self.disc.internal_force(res.stress) - f_ext
+                free = norm(r[system.free])
+                rel = free / (max(norm(f_ext), norm(r[system.fixed])) or 1.0)
+                if best is None or not free >= best[5]:
+                    best = (u_try, res, r, dstrain, dspin, free, rel)
+                if current is None or not free >= current[4]:
+                    return best
+            if current is None:
+                return best
+            alpha *= 0.5
+        return best
 
     def _spin_tangent(self, stress_n, state_n, dstrain, dspin, res) -> np.ndarray:
         """g = ∂σ/∂ω by a forward difference of the update (zeros when spin_step = 0)."""

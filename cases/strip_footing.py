@@ -1,0 +1,218 @@
+"""Rigid rough strip footing on a cohesionless cone: N_q and N_γ against exact solutions.
+
+Scene (half model, symmetric about x = 0; DESIGN §8). A footing of half-width b = B/2 = 1
+on the surface y = 0 of a soil block x ∈ [0, L], y ∈ [-H, 0], with L and H set from the
+size of the Prandtl mechanism of φ (:func:`mechanism_size`) so that the failure zone
+stays inside. Rollers on x = 0 (symmetry) and x = L, fixed base. The footing is rigid and
+rough: its nodes move down by δ·t with ux = 0. The bearing pressure is q_u = Q/b, Q the
+reaction force on the footing (of the half model). Model tier 0 (constant φ, ψ).
+
+* ``--factor Nq``: weightless soil, surcharge q on the free surface, initial stress
+  σ = -q I (in equilibrium with the surcharge and the rollers). N_q = q_u/q against
+  Prandtl–Reissner, N_q = e^{π tan φ} tan²(π/4 + φ/2): exact for associated flow, and for
+  rough and smooth footings alike (weightless soil).
+* ``--factor Ngamma``: unit weight γ, no surcharge. A geostatic stage equilibrates
+  σyy = γy, σxx = K0 σyy (K0 = 1 - sin φ) under gravity, then displacements are zeroed.
+  N_γ = q_u/(½ γ B) against the exact method-of-characteristics values for a rough
+  footing and associated flow of Martin (2005), "Exact bearing capacity calculations
+  using the method of characteristics", Proc. 11th IACMAG, Turin, vol. 4, 441-450:
+  N_γ = 14.75 at φ = 30°. With ψ < φ the collapse load drops (no exact value; reported).
+
+The computed factor is the bearing pressure at the end of the push; the push is a
+multiple of the elastic settlement scale N·b/λ, and the plateau is checked (the load
+change over the last fifth of the push is reported as ``plateau_drift``).
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # this checkout's contfab
+
+import numpy as np  # noqa: E402
+
+from contfab.cases import CaseResult, Figure, main  # noqa: E402
+from contfab.fem import analysis, loads  # noqa: E402
+from contfab.fem import mesh as meshes  # noqa: E402
+from contfab.fem.assembly import Discretization  # noqa: E402
+from contfab.fem.elements import ELEMENTS  # noqa: E402
+from contfab.fem.material import TierMaterial  # noqa: E402
+from contfab.fem.solver import NewtonOptions, Solver, Stage  # noqa: E402
+from contfab.params import ParamError, default_params, load_params  # noqa: E402
+
+DESCRIPTION = "rigid rough strip footing: N_q (Prandtl-Reissner) and N_gamma (Martin 2005)"
+
+B_HALF = 1.0
+MECHANISM_SCALE = {"Nq": 1.0, "Ngamma": 0.6}
+"""The N_γ mechanism (rough footing, self-weight) is about 0.6x the size of Prandtl's."""
+MESH = dict(wm=1.1, dm=1.2, wf=1.6, df=2.2, nf=6, rf=0.5, nx=16, rx=4.0, ny=10, ry=4.0, no=3, ro=2.0)
+MARTIN_2005_NGAMMA_ROUGH = {30.0: 14.75}
+"""Exact N_γ, rough strip footing, associated flow (Martin 2005, method of characteristics)."""
+
+
+def prandtl_nq(phi_deg: float) -> float:
+    """N_q = e^{π tan φ} tan²(π/4 + φ/2) (Prandtl 1920, Reissner 1924)."""
+    phi = math.radians(phi_deg)
+    return math.exp(math.pi * math.tan(phi)) * math.tan(math.pi / 4 + phi / 2) ** 2
+
+
+def mechanism_size(phi_deg: float, b: float = B_HALF) -> tuple[float, float]:
+    """(width from the axis, depth) of the Prandtl mechanism of a footing of half-width b.
+
+    Active wedge under the footing, log-spiral fan r = r0 e^{θ tan φ} about the footing
+    edge over θ ∈ [0, π/2] with r0 = b / cos(π/4 + φ/2), passive wedge to the surface:
+    width b + 2 r1 cos(π/4 - φ/2) with r1 = r0 e^{(π/2) tan φ}; the deepest point is at
+    θ = π/4 + φ/2, depth r0 e^{θ tan φ} cos φ.
+    """
+    phi = math.radians(phi_deg)
+    r0 = b / math.cos(math.pi / 4 + phi / 2)
+    r1 = r0 * math.exp(math.pi / 2 * math.tan(phi))
+    width = b + 2 * r1 * math.cos(math.pi / 4 - phi / 2)
+    depth = r0 * math.exp((math.pi / 4 + phi / 2) * math.tan(phi)) * math.cos(phi)
+    return width, depth
+
+
+def footing_mesh(phi_deg: float, level: int, kind: str = "tri", factor: str = "Nq"):
+    """Graded structured mesh: fine at the footing edge, coarsening outward.
+
+    ``level`` scales the number of intervals (level 1: 6 across the footing half-width,
+    18 beyond it, 12 in depth). The block is 1.5x the mechanism wide and 2x as deep.
+    """
+    if not 1 <= level <= 8:
+        raise ParamError(f"mesh level = {level} is outside the accepted range [1, 8]")
+    width, depth = (MECHANISM_SCALE[factor] * v for v in mechanism_size(phi_deg))
+    g = MESH
+    wm, dm = g["wm"] * width, g["dm"] * depth
+    length, height = g["wf"] * width, g["df"] * depth
+    xs = np.concatenate((meshes.graded(0.0, B_HALF, g["nf"] * level, g["rf"]),
+                         meshes.graded(B_HALF, wm, g["nx"] * level, g["rx"])[1:],
+                         meshes.graded(wm, length, g["no"] * level, g["ro"])[1:]))
+    ys = np.concatenate((meshes.graded(-height, -dm, g["no"] * level, 1 / g["ro"]),
+                         meshes.graded(-dm, 0.0, g["ny"] * level, 1 / g["ry"])[1:]))
+    m = meshes.tensor(xs, ys, kind=kind)
+    tol = 1e-9
+    return meshes.name_boundaries(m, {
+        "footing": lambda x: (np.abs(x[1]) < tol) & (x[0] < B_HALF + tol),
+        "free": lambda x: (np.abs(x[1]) < tol) & (x[0] > B_HALF - tol),
+    })
+
+
+def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int, params,
+          out: Path | None, progress: bool, push: float = 15.0, apex_stiffness: float = 1e-9,
+          surcharge_ratio: float = 0.0) -> dict:
+    """One footing analysis; returns the factor, its curve summary, Newton figures, files."""
+    stress_scale = 1.0     # q (N_q) or γ b (N_γ): the scene's stress unit
+    params = params.with_tier(0).replace("tier0", phi_deg=phi_deg, psi_deg=psi_deg) \
+        .replace("regularization", p_ref=stress_scale)
+    lam = params.regularization.lam
+    kind = "quad" if ELEMENTS[element].mesh_kind == "quad" else "tri"
+    disc = Discretization(footing_mesh(phi_deg, level, kind, factor), element)
+    material = TierMaterial(params, tier=0, apex_stiffness=apex_stiffness)
+    n = disc.npoints
+    stress0 = np.zeros((n, 3))
+    f_dead = np.zeros(disc.ndofs)
+    y = disc.points[:, 1]
+    if factor == "Nq":
+        q = stress_scale
+        stress0[:, 0] = stress0[:, 1] = -q
+        f_dead += loads.surface_load(disc, "free", pressure=q)
+        reference = prandtl_nq(phi_deg)
+    else:
+        gamma = stress_scale / B_HALF
+        q = surcharge_ratio * gamma * B_HALF
+        k0 = 1.0 - math.sin(math.radians(phi_deg))
+        stress0[:, 1] = gamma * y - q
+        stress0[:, 0] = k0 * gamma * y - q
+        f_dead += loads.body_force(disc, by=-gamma)
+        if q > 0:
+            f_dead += loads.surface_load(disc, "top", pressure=q)
+        reference = MARTIN_2005_NGAMMA_ROUGH.get(phi_deg, math.nan)
+    solver = Solver(disc, material, stress0, material.initial_state(n), NewtonOptions())
+    dofs = {f"{s}_{c}": loads.boundary_dofs(disc, s, c)
+            for s, c in (("left", "x"), ("right", "x"), ("bottom", "x"), ("bottom", "y"),
+                         ("footing", "x"), ("footing", "y"))}
+    supports = np.unique(np.concatenate([dofs[k] for k in ("left_x", "right_x", "bottom_x",
+                                                            "bottom_y")]))
+    stages = []
+    if factor == "Ngamma":
+        stages.append(Stage("geostatic", supports, np.zeros(len(supports)), f_dead, dt0=1.0,
+                            dt_max=1.0, dt_min=1.0, reset_displacement=True))
+    footing = np.concatenate((dofs["footing_x"], dofs["footing_y"]))
+    fixed = np.unique(np.concatenate((supports, footing)))
+    scale = reference if math.isfinite(reference) else prandtl_nq(phi_deg)
+    delta = push * scale * B_HALF / lam
+    increment = np.where(np.isin(fixed, dofs["footing_y"]), -delta, 0.0)
+    stages.append(Stage("push", fixed, increment, f_dead, dt0=0.02, dt_max=0.1, dt_min=1e-4))
+    norm = q * B_HALF if factor == "Nq" else stress_scale / B_HALF * B_HALF**2
+
+    def measure(s: Solver) -> dict:
+        u = s.committed.u[dofs["footing_y"]]
+        return {"settlement": float(-u.mean() / B_HALF) if s.committed.stage == "push" else 0.0,
+                factor: -s.reactions(dofs["footing_y"]) / norm}
+
+    name = f"strip_footing_{factor}_phi{phi_deg:g}_psi{psi_deg:g}"
+    width, depth = (MECHANISM_SCALE[factor] * v for v in mechanism_size(phi_deg))
+    outputs = analysis.Outputs(out, name, frame_every=5, curve_axes=("settlement", factor),
+                               reference=reference if math.isfinite(reference) else None,
+                               reference_label="exact (associated)",
+                               window=(0.0, 1.2 * width, -1.2 * depth, 0.0))
+    t0 = time.perf_counter()
+    result = analysis.run(solver, stages, measure, outputs, progress=progress,
+                          record_stages=["push"])
+    wall = time.perf_counter() - t0
+    values = result.column(factor)
+    tail = values[result.column("t") >= 0.8 * result.column("t")[-1]]
+    return {"phi": phi_deg, "psi": psi_deg, "reference": reference, "computed": values[-1],
+            "peak": float(values.max()), "plateau_drift": float(tail[-1] / tail[0] - 1.0),
+            "dofs": disc.ndofs, "element": element, "level": level, "wall_s": wall,
+            "steps": len(result.iterations),
+            "median_newton": float(np.median(result.iterations)),
+            "residuals": [r.residuals for r in solver.records[-3:]],
+            "files": result.files}
+
+
+def add_arguments(p) -> None:
+    p.add_argument("--factor", choices=("Nq", "Ngamma"), default="Nq")
+    p.add_argument("--phi", type=float, nargs="+", default=None,
+                   help="friction angle(s) in degrees (default: the parameter file's tier-0 phi)")
+    p.add_argument("--psi", nargs="+", default=["phi"],
+                   help="dilatancy angle(s) in degrees, or 'phi' for associated flow (default)")
+    p.add_argument("--element", choices=sorted(ELEMENTS), default="P3")
+    p.add_argument("--level", type=int, default=2, help="mesh density level, 1..8")
+    p.add_argument("--params", default=None, help="parameter file (default: the shipped one)")
+    p.add_argument("--lam", type=float, default=None, help="override the regularization lambda")
+    p.add_argument("--apex-stiffness", type=float, default=1e-9,
+                   help="Newton-matrix stiffness fraction at apex points (0: off)")
+
+
+def run(args) -> CaseResult:
+    params = default_params() if args.params is None else load_params(args.params)
+    if args.lam is not None:
+        params = params.replace("regularization", lam=args.lam)
+    if args.fast:
+        args.level = 1
+    phis = args.phi or [params.tier0.phi_deg]
+    figures, notes, files = [], {}, []
+    for phi in phis:
+        for psi_arg in args.psi:
+            psi = phi if psi_arg == "phi" else float(psi_arg)
+            r = solve(phi, psi, args.factor, args.element, args.level, params, args.out,
+                      not args.quiet, apex_stiffness=args.apex_stiffness)
+            label = f"{'N_q' if args.factor == 'Nq' else 'N_gamma'}(phi={phi:g}, psi={psi:g})"
+            if math.isfinite(r["reference"]):
+                figures.append(Figure(label, r["computed"], r["reference"],
+                                      "Prandtl-Reissner" if args.factor == "Nq" else "Martin (2005)"))
+            notes[label] = {k: r[k] for k in ("computed", "peak", "plateau_drift", "dofs",
+                                              "element", "level", "wall_s", "steps",
+                                              "median_newton")}
+            files += r["files"]
+    if not figures:
+        raise ParamError("no reference for these angles: N_gamma has Martin (2005)'s exact "
+                         "value at phi = 30 only")
+    return CaseResult(figures, notes, files)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.modules[__name__]))
