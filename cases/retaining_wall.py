@@ -58,7 +58,7 @@ def solve(phi_deg: float, psi_deg: float, mode: str, element: str, level: int, p
         raise ParamError(f"mesh level = {level} is outside the accepted range [1, 8]")
     kind = ELEMENTS[element].mesh_kind
     mesh = meshes.tensor(meshes.graded(0.0, 4 * HEIGHT, 16 * level, 4.0),
-                         np.linspace(-HEIGHT, 0.0, 6 * level + 1), kind=kind)
+                         meshes.graded(-HEIGHT, 0.0, 6 * level, 2.0), kind=kind)
     disc = Discretization(mesh, element)
     material = TierMaterial(params, tier=0)
     n = disc.npoints
@@ -105,15 +105,16 @@ def add_arguments(p) -> None:
     p.add_argument("--psi", default="phi",
                    help="dilatancy angle in degrees, or 'phi' for associated flow (default)")
     p.add_argument("--mode", choices=("active", "passive", "both"), default="both")
-    p.add_argument("--element", choices=sorted(ELEMENTS), default="P2")
-    p.add_argument("--level", type=int, default=2, help="mesh density level, 1..8")
+    p.add_argument("--element", choices=sorted(ELEMENTS), default="P3",
+                   help="element family (default P3: the element study's choice)")
+    p.add_argument("--level", type=int, default=1, help="mesh density level, 1..8")
     p.add_argument("--params", default=None, help="parameter file (default: the shipped one)")
 
 
 def run(args) -> CaseResult:
     params = default_params() if args.params is None else load_params(args.params)
-    if args.fast:
-        args.level = 1
+    if args.fast:   # the test-suite preset: P2 on the level-1 mesh
+        args.element, args.level = "P2", 1
     phi = params.tier0.phi_deg if args.phi is None else args.phi
     psi = phi if args.psi == "phi" else float(args.psi)
     figures, notes, files = [], {}, []

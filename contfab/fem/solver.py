@@ -125,7 +125,7 @@ class NewtonOptions:
     """
 
     tol: float = 1e-8
-    tol_stall: float = 1e-5
+    tol_stall: float = 1e-4
     max_iter: int = 15
     grow: float = 1.5
     cut: float = 0.25
