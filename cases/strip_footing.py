@@ -41,6 +41,7 @@ from contfab.fem.elements import ELEMENTS  # noqa: E402
 from contfab.fem.material import TierMaterial  # noqa: E402
 from contfab.fem.solver import NewtonOptions, Solver, Stage  # noqa: E402
 from contfab.params import ParamError, default_params, load_params  # noqa: E402
+from dem.fileio import write_csv  # noqa: E402
 
 DESCRIPTION = "rigid rough strip footing: N_q (Prandtl-Reissner) and N_gamma (Martin 2005)"
 
@@ -181,41 +182,65 @@ def add_arguments(p) -> None:
                    help="friction angle(s) in degrees (default: the parameter file's tier-0 phi "
                         "for N_q, 30 for N_gamma, where the exact value is known)")
     p.add_argument("--psi", nargs="+", default=["phi"],
-                   help="dilatancy angle(s) in degrees, or 'phi' for associated flow (default)")
-    p.add_argument("--element", choices=sorted(ELEMENTS), default="P3",
-                   help="element family (default P3: the element study's choice)")
-    p.add_argument("--level", type=int, default=1, help="mesh density level, 1..8")
+                   help="dilatancy angle(s) in degrees, or 'phi' for associated flow (default); "
+                        "several give the drop of the factor with psi")
+    p.add_argument("--element", choices=sorted(ELEMENTS), nargs="+", default=["P3"],
+                   help="element famil(y/ies) (default P3: the element study's choice)")
+    p.add_argument("--level", type=int, nargs="+", default=[1], help="mesh density level(s), 1..8")
     p.add_argument("--params", default=None, help="parameter file (default: the shipped one)")
     p.add_argument("--lam", type=float, default=None, help="override the regularization lambda")
     p.add_argument("--apex-stiffness", type=float, default=1e-9,
                    help="Newton-matrix stiffness fraction at apex points (0: off)")
 
 
+TABLE_COLUMNS = ("factor", "phi", "psi", "element", "level", "dofs", "computed", "reference",
+                 "relative_error", "drop_vs_associated", "plateau_drift", "steps",
+                 "median_newton", "wall_s")
+
+
 def run(args) -> CaseResult:
+    """Every (φ, ψ, element, level) combination; a table CSV when there is more than one."""
     params = default_params() if args.params is None else load_params(args.params)
     if args.lam is not None:
         params = params.replace("regularization", lam=args.lam)
     if args.fast:   # the test-suite preset: P2 on the level-1 mesh
-        args.element, args.level = "P2", 1
+        args.element, args.level = ["P2"], [1]
     phis = args.phi or ([30.0] if args.factor == "Ngamma" else [params.tier0.phi_deg])
-    figures, notes, files = [], {}, []
+    symbol = "N_q" if args.factor == "Nq" else "N_gamma"
+    source = "Prandtl-Reissner" if args.factor == "Nq" else "Martin (2005)"
+    figures, notes, files, rows = [], {}, [], []
     for phi in phis:
-        for psi_arg in args.psi:
-            psi = phi if psi_arg == "phi" else float(psi_arg)
-            r = solve(phi, psi, args.factor, args.element, args.level, params, args.out,
-                      not args.quiet, apex_stiffness=args.apex_stiffness)
-            label = f"{'N_q' if args.factor == 'Nq' else 'N_gamma'}(phi={phi:g}, psi={psi:g})"
-            if math.isfinite(r["reference"]):
-                figures.append(Figure(label, r["computed"], r["reference"],
-                                      "Prandtl-Reissner" if args.factor == "Nq" else "Martin (2005)"))
-            notes[label] = {k: r[k] for k in ("computed", "peak", "plateau_drift", "dofs",
-                                              "element", "level", "wall_s", "steps",
-                                              "median_newton")}
-            notes[label]["last_step_residuals"] = r["residuals"][-1]
-            files += r["files"]
+        for element in args.element:
+            for level in args.level:
+                associated = None
+                for psi_arg in args.psi:
+                    psi = phi if psi_arg == "phi" else float(psi_arg)
+                    r = solve(phi, psi, args.factor, element, level, params, args.out,
+                              not args.quiet, apex_stiffness=args.apex_stiffness)
+                    label = f"{symbol}(phi={phi:g}, psi={psi:g}, {element}, level {level})"
+                    if len(args.element) == len(args.level) == 1:
+                        label = f"{symbol}(phi={phi:g}, psi={psi:g})"
+                    if psi == phi:
+                        associated = r["computed"]
+                    drop = r["computed"] / associated - 1.0 if associated else math.nan
+                    if math.isfinite(r["reference"]) and psi == phi:
+                        figures.append(Figure(label, r["computed"], r["reference"], source))
+                    notes[label] = {k: r[k] for k in ("computed", "peak", "plateau_drift", "dofs",
+                                                      "wall_s", "steps", "median_newton")}
+                    notes[label]["last_step_residuals"] = r["residuals"][-1]
+                    if psi != phi and associated:
+                        notes[label]["drop_vs_associated"] = drop
+                    rows.append([args.factor, phi, psi, element, level, r["dofs"], r["computed"],
+                                 r["reference"], r["computed"] / r["reference"] - 1.0, drop,
+                                 r["plateau_drift"], r["steps"], r["median_newton"], r["wall_s"]])
+                    files += r["files"]
     if not figures:
-        raise ParamError("no reference for these angles: N_gamma has Martin (2005)'s exact "
-                         "value at phi = 30 only")
+        raise ParamError("no reference for these angles and flow rules: the references are "
+                         "for associated flow (psi = phi), and N_gamma's exact value is known "
+                         "at phi = 30 only")
+    if len(rows) > 1 and args.out is not None:
+        table = Path(args.out) / f"strip_footing_{args.factor}_table.csv"
+        files.append(write_csv(table, TABLE_COLUMNS, rows))
     return CaseResult(figures, notes, files)
 
 

@@ -103,7 +103,7 @@ def _resolve_out(args, name: str) -> None:
 def print_result(result: CaseResult, as_json: bool) -> None:
     """One JSON object, or a line per figure with its reference, its source and its error."""
     if as_json:
-        print(json.dumps(result.as_dict(), default=_plain))
+        print(json.dumps(_finite(result.as_dict()), default=_plain, allow_nan=False))
         return
     for f in result.figures:
         print(f"{f.name}: computed {f.computed:.4g}, reference {f.reference:.4g} ({f.source}), "
@@ -121,13 +121,24 @@ def _fmt(v) -> str:
     return str(v)
 
 
+def _finite(obj):
+    """NaN and inf become null (strict JSON), recursively; numpy scalars become floats."""
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    if hasattr(obj, "item") and getattr(obj, "ndim", 1) == 0:
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
 def _plain(obj):
     if hasattr(obj, "tolist"):
         return obj.tolist()
     if isinstance(obj, Path):
         return str(obj)
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
     raise TypeError(f"not JSON serializable: {type(obj).__name__}")
 
 
