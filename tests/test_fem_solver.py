@@ -75,3 +75,34 @@ def test_failure_writes_last_state_and_report_and_no_partial_file(tmp_path):
     assert u[:, 1].min() == pytest.approx(-0.01 * solver.committed.t, rel=1e-10)
     rows = np.genfromtxt(tmp_path / "block_curve.csv", delimiter=",", names=True)
     assert rows["force"][-1] == pytest.approx(0.01 * solver.committed.t * 8 / 3 * 2, rel=1e-9)
+
+
+def test_tier2_block_writes_fabric_fields(tmp_path):
+    """A tier-2 block sheared past yield: the state carries (gp, c, A, Bc, Bs) per point and
+    the frames hold B and the θp director; the fabric stays admissible."""
+    from contfab.fem.material import TierMaterial
+    from contfab.params import default_params
+    from dem.conventions import admissibility_margin
+
+    mesh = M.tensor(np.linspace(0, 1, 3), np.linspace(0, 1, 3))
+    disc = Discretization(mesh, "P2")
+    material = TierMaterial(default_params(), tier=2)
+    n = disc.npoints
+    solver = Solver(disc, material, np.column_stack((-np.ones(n), -np.ones(n), np.zeros(n))),
+                    material.initial_state(n))
+    top = L.boundary_dofs(disc, "top", "y")
+    fixed = np.unique(np.concatenate([top, L.boundary_dofs(disc, "bottom", "y"),
+                                      L.boundary_dofs(disc, "left", "x")]))
+    f = L.surface_load(disc, "right", pressure=1.0)
+    stage = Stage("compress", fixed, np.where(np.isin(fixed, top), -0.02, 0.0), f, dt0=0.1)
+    out = analysis.Outputs(tmp_path, "t2")
+    analysis.run(solver, [stage], lambda s: {"force": -s.reactions(top)}, out, progress=False)
+    state = solver.committed.state
+    assert material.state_names == ("gp", "c", "A", "Bc", "Bs") and state.shape == (n, 5)
+    assert state[:, 0].max() > 0.01                   # the block yielded
+    b = np.hypot(state[:, 3], state[:, 4])
+    assert b.max() > 0 and np.all(admissibility_margin(state[:, 2], b) >= -1e-12)
+    frame = meshio.read(sorted(tmp_path.glob("t2_*.vtu"))[-1])
+    director = frame.cell_data["director"][0]
+    assert {"B", "A", "c", "gp", "yield", "R_over_P"} <= set(frame.cell_data)
+    assert np.allclose(np.hypot(director[:, 0], director[:, 1]), 1.0)
