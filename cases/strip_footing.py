@@ -147,7 +147,7 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
     scale = reference if math.isfinite(reference) else prandtl_nq(phi_deg)
     delta = push * scale * B_HALF / lam
     increment = np.where(np.isin(fixed, dofs["footing_y"]), -delta, 0.0)
-    stages.append(Stage("push", fixed, increment, f_dead, dt0=0.02, dt_max=0.1, dt_min=1e-4))
+    stages.append(Stage("push", fixed, increment, f_dead, dt0=0.02, dt_max=0.05, dt_min=1e-4))
     norm = q * B_HALF if factor == "Nq" else stress_scale / B_HALF * B_HALF**2
 
     def measure(s: Solver) -> dict:
