@@ -103,15 +103,18 @@ def footing_mesh(phi_deg: float, level: int, kind: str = "tri", factor: str = "N
 
 
 def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int, params,
-          out: Path | None, progress: bool, push: float = 15.0, apex_stiffness: float = 1e-9,
-          surcharge_ratio: float = 0.0) -> dict:
-    """One footing analysis; returns the factor, its curve summary, Newton figures, files."""
+          out: Path | None, progress: bool, push: float = 15.0,
+          apex_stiffness: float = 1e-9) -> dict:
+    """One footing analysis; returns the factor, its curve summary, Newton figures, files.
+
+    ``push`` is the footing settlement in units of the elastic scale N·b/λ.
+    """
     stress_scale = 1.0     # q (N_q) or γ b (N_γ): the scene's stress unit
     params = params.with_tier(0).replace("tier0", phi_deg=phi_deg, psi_deg=psi_deg) \
         .replace("regularization", p_ref=stress_scale)
     lam = params.regularization.lam
-    kind = "quad" if ELEMENTS[element].mesh_kind == "quad" else "tri"
-    disc = Discretization(footing_mesh(phi_deg, level, kind, factor), element)
+    disc = Discretization(footing_mesh(phi_deg, level, ELEMENTS[element].mesh_kind, factor),
+                          element)
     material = TierMaterial(params, tier=0, apex_stiffness=apex_stiffness)
     n = disc.npoints
     stress0 = np.zeros((n, 3))
@@ -122,16 +125,15 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
         stress0[:, 0] = stress0[:, 1] = -q
         f_dead += loads.surface_load(disc, "free", pressure=q)
         reference = prandtl_nq(phi_deg)
+        norm = q * B_HALF                       # N_q = Q / (q b)
     else:
         gamma = stress_scale / B_HALF
-        q = surcharge_ratio * gamma * B_HALF
         k0 = 1.0 - math.sin(math.radians(phi_deg))
-        stress0[:, 1] = gamma * y - q
-        stress0[:, 0] = k0 * gamma * y - q
+        stress0[:, 1] = gamma * y
+        stress0[:, 0] = k0 * gamma * y
         f_dead += loads.body_force(disc, by=-gamma)
-        if q > 0:
-            f_dead += loads.surface_load(disc, "top", pressure=q)
         reference = MARTIN_2005_NGAMMA_ROUGH.get(phi_deg, math.nan)
+        norm = gamma * B_HALF**2                # N_γ = q_u / (½ γ B) = Q / (γ b²)
     solver = Solver(disc, material, stress0, material.initial_state(n), NewtonOptions())
     dofs = {f"{s}_{c}": loads.boundary_dofs(disc, s, c)
             for s, c in (("left", "x"), ("right", "x"), ("bottom", "x"), ("bottom", "y"),
@@ -148,7 +150,6 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
     delta = push * scale * B_HALF / lam
     increment = np.where(np.isin(fixed, dofs["footing_y"]), -delta, 0.0)
     stages.append(Stage("push", fixed, increment, f_dead, dt0=0.02, dt_max=0.05, dt_min=1e-4))
-    norm = q * B_HALF if factor == "Nq" else stress_scale / B_HALF * B_HALF**2
 
     def measure(s: Solver) -> dict:
         u = s.committed.u[dofs["footing_y"]]

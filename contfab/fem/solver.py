@@ -30,7 +30,7 @@ the residual on free DOFs against the applied and reaction forces.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Iterator, Protocol
 
 import numpy as np
