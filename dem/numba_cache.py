@@ -7,7 +7,12 @@ not enough. Before numba is imported we set ``NUMBA_CACHE_DIR`` to
 ``~/.cache/contfab/numba/<hash of every .py file in dem/ and contfab/>``: any edit
 anywhere gives a fresh cache, an unchanged tree reuses the warm one.
 
-A user who sets ``NUMBA_CACHE_DIR`` keeps it (and owns its staleness).
+A user who sets ``NUMBA_CACHE_DIR`` keeps it (and owns its staleness). If numba was
+imported first (a test's ``import numba`` before ``import dem``), numba has already read
+its environment, so the directory is also set on ``numba.config.CACHE_DIR``, which the
+cache locator reads when each ``cache=True`` kernel is decorated; otherwise those kernels
+fell back to ``__pycache__`` with per-file keys — measured here: a stale tier-2 kernel
+loaded from there looped forever after a callee in another module changed.
 """
 from __future__ import annotations
 
@@ -29,8 +34,10 @@ def source_digest() -> str:
 
 
 def configure() -> None:
-    """Set NUMBA_CACHE_DIR unless the user did, or numba is already imported."""
-    if "NUMBA_CACHE_DIR" in os.environ or "numba" in sys.modules:
+    """Set NUMBA_CACHE_DIR (and numba's config if numba is loaded) unless the user set it."""
+    if "NUMBA_CACHE_DIR" in os.environ:
         return
     base = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache"))
     os.environ["NUMBA_CACHE_DIR"] = str(base / "contfab" / "numba" / source_digest())
+    if "numba" in sys.modules:
+        sys.modules["numba"].config.CACHE_DIR = os.environ["NUMBA_CACHE_DIR"]
