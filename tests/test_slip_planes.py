@@ -157,3 +157,18 @@ def test_softmax_shortfall_scales_as_one_over_sharpness(tier2_prm):
         assert shortfalls[beta] == pytest.approx(w_min * dh, rel=1e-9)
         assert shortfalls[beta] <= 0.27847 / beta
     assert shortfalls[1000.0] < shortfalls[100.0] < shortfalls[10.0]
+
+
+@given(theta=st.floats(-50.0, 50.0), two_alpha=st.floats(-7.0, 7.0))
+def test_arc_u_wraps_to_the_half_open_period(theta, two_alpha):
+    u = sp.arc_u(theta, 0.0, two_alpha)          # g = 0: no move to an arc end
+    assert -np.pi < u <= np.pi
+    k = (2.0 * theta - two_alpha - u) / (2.0 * np.pi)
+    assert k == pytest.approx(round(k), abs=1e-9)  # u differs from 2(θ - α) by whole turns
+
+
+def test_arc_u_of_a_huge_angle_returns_at_once():
+    # A garbage warm start (1e300) once made the ±2π wrap loop forever.
+    u = sp.arc_u(1e300, 0.0, 0.3)
+    assert -np.pi < u <= np.pi
+    assert np.isnan(sp.arc_u(np.nan, 0.0, 0.3))

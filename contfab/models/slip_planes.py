@@ -314,12 +314,14 @@ def stress_frame(sxx, syy, sxy):
 
 @njit(cache=True, error_model="numpy")
 def arc_u(theta, g, two_alpha):
-    """u = 2(θ - α) of plane θ, wrapped to (-π, π] and moved to the nearest end of arc g."""
+    """u = 2(θ - α) of plane θ, wrapped to (-π, π] and moved to the nearest end of arc g.
+
+    The wrap is one floor, not a loop: a loop of ±2π steps never ends for a plane angle of
+    1e300 (an uninitialized warm start hung the tier-2 update that way)."""
     u = 2.0 * theta - two_alpha
-    while u > np.pi:
-        u -= 2.0 * np.pi
-    while u <= -np.pi:
-        u += 2.0 * np.pi
+    u -= 2.0 * np.pi * np.floor((u + np.pi) / (2.0 * np.pi))
+    if u == -np.pi:
+        u = np.pi
     if g < 0.0 and u < 0.0:
         return 0.0 if u > -0.5 * np.pi else np.pi
     if g > 0.0 and u > 0.0:
