@@ -39,6 +39,24 @@ def _run_paths(args) -> None:
                   f"{'; stress-controlled ' + sig if sig else ''}{'; until ' + until if until else ''}")
 
 
+# --------------------------------------------------------------------------- case
+
+def _add_case(p: argparse.ArgumentParser) -> None:
+    p.add_argument("name", nargs="?", help="a case of cases/ (omit to list them)")
+    p.add_argument("args", nargs=argparse.REMAINDER,
+                   help="the case's own options (--fast, --json, --out DIR, ...; see --help)")
+
+
+def _run_case(args) -> int:
+    from contfab import cases
+
+    if args.name is None:
+        for name in cases.case_names():
+            print(f"{name:24s} {cases.load_case(name).DESCRIPTION.splitlines()[0]}")
+        return 0
+    return cases.main(cases.load_case(args.name), args.args, prog=f"contfab case {args.name}")
+
+
 # --------------------------------------------------------------------------- dem
 
 def _dem_settings_args(p: argparse.ArgumentParser) -> None:
@@ -202,6 +220,7 @@ def _run_compare(args) -> None:
 
 BENCHES = {
     "dem": "contfab.bench.dem",
+    "fem": "contfab.bench.fem",
     "model": "contfab.bench.model",
     "point": "contfab.bench.point",
 }
@@ -228,6 +247,7 @@ def _run_bench(args) -> None:
 COMMANDS = {
     "paths": (_add_paths, _run_paths, "list the standard loading paths, or show one"),
     "dem": (_add_dem, _run_dem, "the 2D disc-DEM RVE: prepare samples, run loading paths"),
+    "case": (_add_case, _run_case, "run a boundary-value case of cases/ (or list them)"),
     "bench": (_add_bench, _run_bench, "speed and memory benchmarks"),
     "point": (_add_point, _run_point, "drive one material point along a loading path (CSV, "
                                       "JSON, PNG)"),
@@ -249,11 +269,11 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        COMMANDS[args.command][1](args)
+        status = COMMANDS[args.command][1](args)
     except (ValueError, FileNotFoundError) as exc:
         print(f"contfab {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    return 0
+    return status or 0
 
 
 if __name__ == "__main__":

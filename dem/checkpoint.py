@@ -79,6 +79,11 @@ def load(file: str | os.PathLike) -> tuple[State, Dynamics, PathRun | None, dict
         if isinstance(exc, CheckpointError):
             raise
         raise CheckpointError(f"{file}: cannot read checkpoint ({exc})") from exc
+    if "stress_contact" not in kw:       # written before the servo held the contact stress
+        vol = float(np.linalg.det(kw["h"]))
+        mv = kw["mass"][:, None] * kw["v"]
+        kin = np.array([mv[:, 0] @ kw["v"][:, 0], mv[:, 1] @ kw["v"][:, 1], mv[:, 0] @ kw["v"][:, 1]])
+        kw["stress_contact"] = kw["stress"] + kin / vol
     state = State(**kw, n_pairs=meta["n_pairs"], step=meta["step"], rng_state=meta["rng_state"],
                   rebuilds=meta["rebuilds"])
     run = None

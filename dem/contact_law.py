@@ -128,19 +128,26 @@ class ContactLaw:
 
 
 @njit(cache=True)
-def contact_response(delta, delta_old, fd_old, vn, vt, wrel, xi_t, xi_r, m_eff, r_eff, kn, kt,
-                     beta, mu, mu_roll, dt):
+def damping_coefficient(m_eff, kn, beta):
+    """γ = 2 β sqrt(m_eff kn) of the normal dashpot."""
+    return 2.0 * beta * math.sqrt(m_eff * kn)
+
+
+@njit(cache=True)
+def contact_response(delta, delta_old, fd_old, vn, vt, wrel, xi_t, xi_r, gamma, r_eff, kn, kt,
+                     mu, mu_roll, dt):
     """One contact update: (fn, ft, Mr, ξt, ξr, fd, damping, friction, rolling dissipation).
 
     Inputs as in the module docstring (δ > 0 overlap, vn, vt relative contact velocities,
-    wrel = ωj - ωi, ξ histories before the step); δ_old and fd_old = fn - kn δ are the
+    wrel = ωj - ωi, ξ histories before the step, γ = :func:`damping_coefficient` and
+    r_eff of the pair, constant while it is listed); δ_old and fd_old = fn - kn δ are the
     overlap and damping force of the previous step. Dissipations are the energies lost in
     this step, as the trapezoidal work of the non-elastic force parts, which is how
     velocity Verlet transmits work to the discs: damping ½ (fd_old + fd)(δ - δ_old),
     friction ½ kt (ξ_old + ξ)(ξ_trial - ξ) (mean spring force times slip).
     """
     fel = kn * delta
-    fn = fel - 2.0 * beta * math.sqrt(m_eff * kn) * vn
+    fn = fel - gamma * vn
     if fn < 0.0:
         fn = 0.0
     fd = fn - fel

@@ -14,7 +14,8 @@ V σ:L - (dissipation), with σ the Love–Weber stress including its kinetic pa
 One step of length dt (kick–drift–kick; forces F_n known at the start):
 
     1. L for this step: prescribed components at their rate, stress-controlled ones
-       from the servo (:mod:`dem.servo`) on the stress σ_n;
+       from the servo (:mod:`dem.servo`) on the contact stress σ^c_n = (1/V) Σ f⊗l
+       (the kinetic part, ~ρ v'² ≈ 1e-6 P0 in a quasi-static run, is not fed back);
     2. v' += dt/2 (F_n/m - L v'),  ω += dt/2 T_n/I;
     3. h_{n+1} by the Cayley map; s += dt h_mid⁻¹ v'  (h_mid = (h_n + h_{n+1})/2);
     4. if the neighbour list may have become invalid, return to rebuild it (the step
@@ -24,6 +25,10 @@ One step of length dt (kick–drift–kick; forces F_n known at the start):
     6. gather F, T per disc (no scattered writes), v' += dt/2 (F/m - L v'),
        ω += dt/2 T/I;
     7. σ_{n+1}, accumulators: strain ε += sym(L) dt, work += dt V_mid (σ_n+σ_{n+1})/2 : L.
+
+Steps 6 of one step and 2–3 of the next touch the same disc data, so they run as one
+pass over the discs, with the servo (1, a scalar update from the pair pass's sums) in
+between: a step costs two parallel passes, one over pairs and one over discs.
 
 Kernels run with numba ``prange`` over fixed chunks of CHUNK discs or pairs; every sum is
 formed per chunk and the chunk sums are added in chunk order, so the results are
@@ -44,12 +49,16 @@ import numpy as np
 from numba import njit, prange
 
 from dem import neighbours
-from dem.contact_law import ContactLaw, contact_response
-from dem.periodic_cell import cayley_step
+from dem.contact_law import ContactLaw, contact_response, damping_coefficient
+from dem.periodic_cell import cayley_det, cayley_step
 from dem.servo import L_MAX_FACTOR, servo_rate, time_constant
 from dem.state import D_DAMP, D_FRIC, D_ROLL, EXX, EXY, EYY, TAU, TIME, WORK, State
 
 CHUNK = 256
+FASTMATH = {"contract", "reassoc", "nsz"}
+"""LLVM flags of the pass kernels: fused multiply-add and reordered sums (same code for
+every thread count, so parallel runs stay bitwise equal to serial ones); no nnan/ninf, so
+the non-finite check stays exact (ENGINEERING.md)."""
 Z_MAX = 6
 DT_FRACTION = 0.1
 """Default dt in units of sqrt(m_min/kn)."""
@@ -128,52 +137,39 @@ class Control:
 
 # ----------------------------------------------------------------------------- kernels
 
-@njit(cache=True, parallel=True)
-def kick_drift(force, torque, v, omega, s, s_ref, inv_mass, inv_inertia, L, h_new, hmid_inv,
-               half_dt, dt):
-    """Steps 2–3 for the discs; returns max_i |h_new (s_i - s_ref,i)| (for the list check)."""
-    n = s.shape[0]
-    nchunk = (n + CHUNK - 1) // CHUNK
-    dmax = np.zeros(nchunk)
-    for c in prange(nchunk):
-        dm = 0.0
-        for p in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
-            vx, vy = v[p, 0], v[p, 1]
-            vx2 = vx + half_dt * (force[p, 0] * inv_mass[p] - (L[0, 0] * vx + L[0, 1] * vy))
-            vy2 = vy + half_dt * (force[p, 1] * inv_mass[p] - (L[1, 0] * vx + L[1, 1] * vy))
-            v[p, 0], v[p, 1] = vx2, vy2
-            omega[p] += half_dt * torque[p] * inv_inertia[p]
-            s[p, 0] += dt * (hmid_inv[0, 0] * vx2 + hmid_inv[0, 1] * vy2)
-            s[p, 1] += dt * (hmid_inv[1, 0] * vx2 + hmid_inv[1, 1] * vy2)
-            d0, d1 = s[p, 0] - s_ref[p, 0], s[p, 1] - s_ref[p, 1]
-            dx = h_new[0, 0] * d0 + h_new[0, 1] * d1
-            dy = h_new[1, 0] * d0 + h_new[1, 1] * d1
-            d2 = dx * dx + dy * dy
-            if d2 > dm:
-                dm = d2
-        dmax[c] = dm
-    return math.sqrt(dmax.max()) if nchunk > 0 else 0.0
+@njit(cache=True)
+def pair_constants(pair_ij, n_pairs, radius, mass, kn, beta):
+    """(n_pairs, 2): damping coefficient γ and r_eff = ri rj/(ri + rj) of every listed pair
+    (fixed while the list is; computed once per list instead of every step)."""
+    out = np.empty((max(n_pairs, 1), 2))
+    for q in range(n_pairs):
+        i, j = pair_ij[q, 0], pair_ij[q, 1]
+        out[q, 0] = damping_coefficient(mass[i] * mass[j] / (mass[i] + mass[j]), kn, beta)
+        out[q, 1] = radius[i] * radius[j] / (radius[i] + radius[j])
+    return out
 
 
 NPAIR_SUMS = 10  # sxx, syy, sxy, Mxx, Myy, Mxy, Myx, d_damp, d_fric, d_roll
 
 
-@njit(cache=True, parallel=True)
-def pair_forces(h, L, s, v, omega, radius, mass, pair_ij, pair_shift, pair_hist, pair_f,
-                n_pairs, kn, kt, beta, mu, mu_roll, dt):
+@njit(cache=True, parallel=True, fastmath=FASTMATH)
+def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair_hist, pair_f,
+                n_pairs, kn, kt, mu, mu_roll, dt):
     """Step 5: contact forces of every listed pair; returns the summed (NPAIR_SUMS,) terms.
 
     Writes pair_f[q] = (fx, fy, torque on i, torque on j) with (fx, fy) the force on i,
     updates the histories (by dt; dt = 0 evaluates without advancing ξ), and sums
     f⊗l (stress · V), the affine stiffness · V of each L component, and the dissipation.
+    ``pair_const`` is :func:`pair_constants` of the list.
     """
     nchunk = (n_pairs + CHUNK - 1) // CHUNK
     part = np.zeros((max(nchunk, 1), NPAIR_SUMS))
     h00, h01, h10, h11 = h[0, 0], h[0, 1], h[1, 0], h[1, 1]
     for c in prange(nchunk):
-        acc = np.zeros(NPAIR_SUMS)
+        a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = a8 = a9 = 0.0
         for q in range(c * CHUNK, min(n_pairs, (c + 1) * CHUNK)):
-            i, j = pair_ij[q, 0], pair_ij[q, 1]
+            # unsigned: indexing without the negative-index wraparound test
+            i, j = np.uint64(pair_ij[q, 0]), np.uint64(pair_ij[q, 1])
             ds0 = s[j, 0] + pair_shift[q, 0] - s[i, 0]
             ds1 = s[j, 1] + pair_shift[q, 1] - s[i, 1]
             lx = h00 * ds0 + h01 * ds1
@@ -185,10 +181,10 @@ def pair_forces(h, L, s, v, omega, radius, mass, pair_ij, pair_shift, pair_hist,
                 if pair_hist[q, 3] != 0.0:
                     # the contact opened: its stored tangential energy is lost, and the
                     # damping force does its work down to δ = 0
-                    acc[7] -= 0.5 * pair_hist[q, 2] * pair_hist[q, 3]
-                    acc[8] += 0.5 * kt * pair_hist[q, 0] ** 2
-                    reff = ri * rj / rs
-                    acc[9] += 0.5 * kt * reff * reff * pair_hist[q, 1] ** 2
+                    a7 -= 0.5 * pair_hist[q, 2] * pair_hist[q, 3]
+                    a8 += 0.5 * kt * pair_hist[q, 0] ** 2
+                    reff = pair_const[q, 1]
+                    a9 += 0.5 * kt * reff * reff * pair_hist[q, 1] ** 2
                     for a in range(4):
                         pair_hist[q, a] = 0.0
                 pair_f[q, 0] = 0.0
@@ -197,7 +193,8 @@ def pair_forces(h, L, s, v, omega, radius, mass, pair_ij, pair_shift, pair_hist,
                 pair_f[q, 3] = 0.0
                 continue
             dist = math.sqrt(d2)
-            nx, ny = lx / dist, ly / dist
+            inv = 1.0 / dist
+            nx, ny = lx * inv, ly * inv
             tx, ty = -ny, nx
             delta = rs - dist
             li, lj = ri - 0.5 * delta, rj - 0.5 * delta
@@ -206,10 +203,9 @@ def pair_forces(h, L, s, v, omega, radius, mass, pair_ij, pair_shift, pair_hist,
             wy = L[1, 0] * lx + L[1, 1] * ly + v[j, 1] - v[i, 1] - spin * ty
             vn = wx * nx + wy * ny
             vt = wx * tx + wy * ty
-            mi, mj = mass[i], mass[j]
             fn, ft, mr, xi, xr, fd, dd, dfr, drl = contact_response(
                 delta, pair_hist[q, 3], pair_hist[q, 2], vn, vt, omega[j] - omega[i],
-                pair_hist[q, 0], pair_hist[q, 1], mi * mj / (mi + mj), ri * rj / rs, kn, kt, beta,
+                pair_hist[q, 0], pair_hist[q, 1], pair_const[q, 0], pair_const[q, 1], kn, kt,
                 mu, mu_roll, dt)
             pair_hist[q, 0] = xi
             pair_hist[q, 1] = xr
@@ -221,168 +217,231 @@ def pair_forces(h, L, s, v, omega, radius, mass, pair_ij, pair_shift, pair_hist,
             pair_f[q, 1] = fy
             pair_f[q, 2] = li * ft + mr
             pair_f[q, 3] = lj * ft - mr
-            acc[0] += fx * lx
-            acc[1] += fy * ly
-            acc[2] += 0.5 * (fx * ly + fy * lx)
+            a0 += fx * lx
+            a1 += fy * ly
+            a2 += 0.5 * (fx * ly + fy * lx)
             ax = kn * nx * nx + kt * tx * tx
             ay = kn * ny * ny + kt * ty * ty
-            acc[3] += ax * lx * lx
-            acc[4] += ay * ly * ly
-            acc[5] += ax * ly * ly
-            acc[6] += ay * lx * lx
-            acc[7] += dd
-            acc[8] += dfr
-            acc[9] += drl
-        part[c, :] = acc
+            a3 += ax * lx * lx
+            a4 += ay * ly * ly
+            a5 += ax * ly * ly
+            a6 += ay * lx * lx
+            a7 += dd
+            a8 += dfr
+            a9 += drl
+        part[c, 0], part[c, 1], part[c, 2], part[c, 3], part[c, 4] = a0, a1, a2, a3, a4
+        part[c, 5], part[c, 6], part[c, 7], part[c, 8], part[c, 9] = a5, a6, a7, a8, a9
     out = np.zeros(NPAIR_SUMS)
     for c in range(nchunk):
         out += part[c]
     return out
 
 
-@njit(cache=True, parallel=True)
-def gather_kick(pair_f, inc_ptr, inc, force, torque, v, omega, mass, inv_mass, inv_inertia, L,
-                half_dt):
-    """Step 6: F, T per disc from its pairs, then the second half kick.
+NDISC_SUMS = 5  # Σ m v'x², Σ m v'y², Σ m v'x v'y, non-finite count, max displacement²
 
-    Returns (Σ m v'x², Σ m v'y², Σ m v'x v'y, finite) after the kick (kinetic stress · V
-    is minus these).
+
+@njit(cache=True, parallel=True, fastmath=FASTMATH)
+def disc_pass(pair_f, inc_ptr, inc, force, torque, v, omega, s, s_ref, mass, inv_mass,
+              inv_inertia, L_end, L_next, h_next, hmid_inv, half_dt, dt, gather, drift):
+    """One pass over the discs: steps 6 and 2–3, fused across two consecutive steps.
+
+    gather: F, T per disc from its pairs (no scattered writes), then the second half kick
+    of the step that ends, v' += dt/2 (F/m - L_end v'), ω += dt/2 T/I. The kinetic sums
+    are taken here, at the end of that step. drift: the first half kick of the next step
+    with its L_next and the drift s += dt h_mid⁻¹ v', and the largest displacement
+    |h_next (s - s_ref)| since the last rebuild (for the list check).
+    Returns the (NDISC_SUMS,) sums (the displacement as its square).
     """
     n = v.shape[0]
     nchunk = (n + CHUNK - 1) // CHUNK
-    part = np.zeros((max(nchunk, 1), 4))
+    part = np.zeros((max(nchunk, 1), NDISC_SUMS))
     for c in prange(nchunk):
         kxx = 0.0
         kyy = 0.0
         kxy = 0.0
         bad = 0.0
+        dm = 0.0
         for p in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
-            fx = 0.0
-            fy = 0.0
-            t = 0.0
-            for k in range(inc_ptr[p], inc_ptr[p + 1]):
-                q = inc[k]
-                if q >= 0:
-                    fx += pair_f[q, 0]
-                    fy += pair_f[q, 1]
-                    t += pair_f[q, 2]
-                else:
-                    q = -q - 1
-                    fx -= pair_f[q, 0]
-                    fy -= pair_f[q, 1]
-                    t += pair_f[q, 3]
-            force[p, 0] = fx
-            force[p, 1] = fy
-            torque[p] = t
-            vx, vy = v[p, 0], v[p, 1]
-            vx2 = vx + half_dt * (fx * inv_mass[p] - (L[0, 0] * vx + L[0, 1] * vy))
-            vy2 = vy + half_dt * (fy * inv_mass[p] - (L[1, 0] * vx + L[1, 1] * vy))
+            if gather:
+                fx = 0.0
+                fy = 0.0
+                t = 0.0
+                for k in range(inc_ptr[p], inc_ptr[p + 1]):
+                    q = inc[k]
+                    if q >= 0:
+                        fx += pair_f[q, 0]
+                        fy += pair_f[q, 1]
+                        t += pair_f[q, 2]
+                    else:
+                        q = -q - 1
+                        fx -= pair_f[q, 0]
+                        fy -= pair_f[q, 1]
+                        t += pair_f[q, 3]
+                force[p, 0] = fx
+                force[p, 1] = fy
+                torque[p] = t
+                vx, vy = v[p, 0], v[p, 1]
+                vx2 = vx + half_dt * (fx * inv_mass[p] - (L_end[0, 0] * vx + L_end[0, 1] * vy))
+                vy2 = vy + half_dt * (fy * inv_mass[p] - (L_end[1, 0] * vx + L_end[1, 1] * vy))
+                w = omega[p] + half_dt * t * inv_inertia[p]
+                kxx += mass[p] * vx2 * vx2
+                kyy += mass[p] * vy2 * vy2
+                kxy += mass[p] * vx2 * vy2
+                if not (math.isfinite(vx2) and math.isfinite(vy2) and math.isfinite(w)):
+                    bad += 1.0
+            else:
+                fx, fy, t = force[p, 0], force[p, 1], torque[p]
+                vx2, vy2, w = v[p, 0], v[p, 1], omega[p]
+            if drift:
+                vx3 = vx2 + half_dt * (fx * inv_mass[p] - (L_next[0, 0] * vx2 + L_next[0, 1] * vy2))
+                vy3 = vy2 + half_dt * (fy * inv_mass[p] - (L_next[1, 0] * vx2 + L_next[1, 1] * vy2))
+                vx2, vy2 = vx3, vy3
+                w += half_dt * t * inv_inertia[p]
+                s[p, 0] += dt * (hmid_inv[0, 0] * vx2 + hmid_inv[0, 1] * vy2)
+                s[p, 1] += dt * (hmid_inv[1, 0] * vx2 + hmid_inv[1, 1] * vy2)
+                d0, d1 = s[p, 0] - s_ref[p, 0], s[p, 1] - s_ref[p, 1]
+                dx = h_next[0, 0] * d0 + h_next[0, 1] * d1
+                dy = h_next[1, 0] * d0 + h_next[1, 1] * d1
+                d2 = dx * dx + dy * dy
+                if d2 > dm:
+                    dm = d2
             v[p, 0], v[p, 1] = vx2, vy2
-            omega[p] += half_dt * t * inv_inertia[p]
-            kxx += mass[p] * vx2 * vx2
-            kyy += mass[p] * vy2 * vy2
-            kxy += mass[p] * vx2 * vy2
-            if not (math.isfinite(vx2) and math.isfinite(vy2) and math.isfinite(omega[p])):
-                bad = 1.0
+            omega[p] = w
         part[c, 0] = kxx
         part[c, 1] = kyy
         part[c, 2] = kxy
         part[c, 3] = bad
-    out = np.zeros(4)
+        part[c, 4] = dm
+    out = np.zeros(NDISC_SUMS)
     for c in range(nchunk):
-        out += part[c]
-    out[3] = 1.0 if out[3] == 0.0 else 0.0
+        for a in range(4):
+            out[a] += part[c, a]
+        out[4] = max(out[4], part[c, 4])
     return out
 
 
 @njit(cache=True)
-def _finish(h, ps, ks, stress, stiff):
-    """σ (incl. kinetic part) and affine stiffness from the pair and disc sums."""
+def _contact_stress(h, ps, stress_c, stiff):
+    """σ^c = (1/V) Σ f⊗l and the affine stiffness (1/V) of each L component."""
     vol = h[0, 0] * h[1, 1] - h[0, 1] * h[1, 0]
-    stress[0] = (ps[0] - ks[0]) / vol
-    stress[1] = (ps[1] - ks[1]) / vol
-    stress[2] = (ps[2] - ks[2]) / vol
+    for a in range(3):
+        stress_c[a] = ps[a] / vol
     for a in range(4):
         stiff[a] = ps[3 + a] / vol
 
 
 @njit(cache=True)
-def _servo(L, l_int, stress, stiff, rate, controlled, target, dt, tau, l_max):
+def _servo(L, l_int, stress_c, stiff, rate, controlled, target, dt, tau, l_max):
     """Step 1: set L (xx, yy, xy, yx -> L[0,0], L[1,1], L[0,1], L[1,0])."""
     for a in range(4):
         r, cc = (0, 0) if a == 0 else (1, 1) if a == 1 else (0, 1) if a == 2 else (1, 0)
         if controlled[a]:
             k = a if a < 2 else 2
-            L[r, cc], l_int[a] = servo_rate(target[k] - stress[k], stiff[a], l_int[a], dt, tau,
+            L[r, cc], l_int[a] = servo_rate(target[k] - stress_c[k], stiff[a], l_int[a], dt, tau,
                                             l_max)
         else:
             L[r, cc] = rate[a]
 
 
 @njit(cache=True)
-def advance_kernel(nsteps, mid_step, k0, ktotal, dt, kn, kt, beta, mu, mu_roll, skin, r_max,
-                   gdot_ref, tau_servo, l_max, radius, mass, inv_mass, inv_inertia, s, v, omega,
-                   force, torque, s_ref, h, h_ref, L, l_int, pair_ij, pair_shift, pair_hist,
-                   pair_f, n_pairs, inc_ptr, inc, rate, controlled, target0, target1, stress,
-                   stiff, acc):
+def _next_cell(L, l_int, stress_c, stiff, rate, controlled, target0, target1, frac, dt, tau,
+               l_max, h):
+    """Step 1 and the cell part of step 3: L of the next step (target at ``frac`` of
+    [target0, target1]), h_next by the Cayley map and h_mid⁻¹."""
+    target = target0 + (target1 - target0) * frac
+    _servo(L, l_int, stress_c, stiff, rate, controlled, target, dt, tau, l_max)
+    h_next = cayley_step(h, L, dt)
+    hm = 0.5 * (h + h_next)
+    det = hm[0, 0] * hm[1, 1] - hm[0, 1] * hm[1, 0]
+    hmi = np.empty((2, 2))
+    hmi[0, 0] = hm[1, 1] / det
+    hmi[0, 1] = -hm[0, 1] / det
+    hmi[1, 0] = -hm[1, 0] / det
+    hmi[1, 1] = hm[0, 0] / det
+    return h_next, hmi
+
+
+@njit(cache=True)
+def _begin_step(acc, L, dt, gdot_ref, h, h_ref, dmax2, r_max, skin):
+    """The step has moved the cell and drifted the discs: advance time and strain; return
+    True if the neighbour list may have become invalid (see :mod:`dem.neighbours`)."""
+    acc[TIME] += dt
+    acc[TAU] += gdot_ref * dt
+    acc[EXX] += L[0, 0] * dt
+    acc[EYY] += L[1, 1] * dt
+    acc[EXY] += 0.5 * (L[0, 1] + L[1, 0]) * dt
+    dr = h_ref[0, 0] * h_ref[1, 1] - h_ref[0, 1] * h_ref[1, 0]
+    e00 = (h[0, 0] * h_ref[1, 1] - h[0, 1] * h_ref[1, 0]) / dr - 1.0
+    e01 = (-h[0, 0] * h_ref[0, 1] + h[0, 1] * h_ref[0, 0]) / dr
+    e10 = (h[1, 0] * h_ref[1, 1] - h[1, 1] * h_ref[1, 0]) / dr
+    e11 = (-h[1, 0] * h_ref[0, 1] + h[1, 1] * h_ref[0, 0]) / dr - 1.0
+    stretch = math.sqrt(e00 * e00 + e01 * e01 + e10 * e10 + e11 * e11)
+    return 2.0 * math.sqrt(dmax2) + stretch * (2.0 * r_max + skin) >= skin
+
+
+@njit(cache=True)
+def _end_step(acc, h, L, dt, ps, ks, stress, stress_c):
+    """Close a step: σ = σ^c - (1/V) Σ m v'⊗v', dissipation, and the external work
+    dt V_mid (σ_start + σ_end)/2 : L, with V_start = V_end / det(Cayley map of L)."""
+    vol = h[0, 0] * h[1, 1] - h[0, 1] * h[1, 0]
+    s0, s1, s2 = stress[0], stress[1], stress[2]
+    for a in range(3):
+        stress[a] = stress_c[a] - ks[a] / vol
+    acc[D_DAMP] += ps[7]
+    acc[D_FRIC] += ps[8]
+    acc[D_ROLL] += ps[9]
+    vmid = 0.5 * vol * (1.0 + 1.0 / cayley_det(L, dt))
+    acc[WORK] += dt * vmid * 0.5 * ((s0 + stress[0]) * L[0, 0] + (s1 + stress[1]) * L[1, 1]
+                                    + (s2 + stress[2]) * (L[0, 1] + L[1, 0]))
+
+
+@njit(cache=True)
+def advance_kernel(nsteps, mid_step, k0, ktotal, dt, kn, kt, mu, mu_roll, skin, r_max,
+                   gdot_ref, tau_servo, l_max, radius, pair_const, mass, inv_mass, inv_inertia,
+                   s, v, omega, force, torque, s_ref, h, h_ref, L, l_int, pair_ij, pair_shift,
+                   pair_hist, pair_f, n_pairs, inc_ptr, inc, rate, controlled,
+                   target0, target1, stress, stress_c, stiff, acc):
     """Up to ``nsteps`` steps (see the module doc); returns (steps completed, status).
 
-    ``mid_step``: the first step already did 1–4 (resume after a rebuild). Step k of the
-    call uses the stress target at fraction (k0 + k + 1)/ktotal of [target0, target1].
-    status NEED_REBUILD: step ``done`` stopped after 4; NOT_FINITE: a velocity is NaN/inf.
+    Two parallel passes per step: the pairs (step 5), then the discs (step 6 of this
+    step fused with steps 2–3 of the next, whose L the servo sets in between from the
+    contact stress). The last step of a call ends after step 6, so between calls the
+    state is at a full step. ``mid_step``: the first step already did 1–4 (resume after a
+    rebuild). Step k of the call uses the stress target at fraction (k0 + k + 1)/ktotal of
+    [target0, target1]. status NEED_REBUILD: step ``done`` + 1 stopped after 4;
+    NOT_FINITE: a velocity is NaN/inf.
     """
     half = 0.5 * dt
-    target = np.empty(3)
-    h_old = h.copy()
+    L_end = L.copy()
+    if not mid_step:
+        h_next, hmi = _next_cell(L, l_int, stress_c, stiff, rate, controlled, target0, target1,
+                                 (k0 + 1) / ktotal, dt, tau_servo, l_max, h)
+        ks = disc_pass(pair_f, inc_ptr, inc, force, torque, v, omega, s, s_ref, mass, inv_mass,
+                       inv_inertia, L_end, L, h_next, hmi, half, dt, False, True)
+        h[:, :] = h_next
+        if _begin_step(acc, L, dt, gdot_ref, h, h_ref, ks[4], r_max, skin):
+            return 0, NEED_REBUILD
     for k in range(nsteps):
-        if not (k == 0 and mid_step):
-            frac = (k0 + k + 1) / ktotal
-            for a in range(3):
-                target[a] = target0[a] + (target1[a] - target0[a]) * frac
-            _servo(L, l_int, stress, stiff, rate, controlled, target, dt, tau_servo, l_max)
-            h_old[:, :] = h
-            h_new = cayley_step(h, L, dt)
-            hm = 0.5 * (h + h_new)
-            det = hm[0, 0] * hm[1, 1] - hm[0, 1] * hm[1, 0]
-            hmi = np.empty((2, 2))
-            hmi[0, 0] = hm[1, 1] / det
-            hmi[0, 1] = -hm[0, 1] / det
-            hmi[1, 0] = -hm[1, 0] / det
-            hmi[1, 1] = hm[0, 0] / det
-            dmax = kick_drift(force, torque, v, omega, s, s_ref, inv_mass, inv_inertia, L, h_new,
-                              hmi, half, dt)
-            h[:, :] = h_new
-            acc[TIME] += dt
-            acc[TAU] += gdot_ref * dt
-            acc[EXX] += L[0, 0] * dt
-            acc[EYY] += L[1, 1] * dt
-            acc[EXY] += 0.5 * (L[0, 1] + L[1, 0]) * dt
-            # list validity: disc displacements plus the cell's stretch since the rebuild
-            dr = h_ref[0, 0] * h_ref[1, 1] - h_ref[0, 1] * h_ref[1, 0]
-            e00 = (h[0, 0] * h_ref[1, 1] - h[0, 1] * h_ref[1, 0]) / dr - 1.0
-            e01 = (-h[0, 0] * h_ref[0, 1] + h[0, 1] * h_ref[0, 0]) / dr
-            e10 = (h[1, 0] * h_ref[1, 1] - h[1, 1] * h_ref[1, 0]) / dr
-            e11 = (-h[1, 0] * h_ref[0, 1] + h[1, 1] * h_ref[0, 0]) / dr - 1.0
-            stretch = math.sqrt(e00 * e00 + e01 * e01 + e10 * e10 + e11 * e11)
-            if 2.0 * dmax + stretch * (2.0 * r_max + skin) >= skin:
-                return k, NEED_REBUILD
+        ps = pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair_hist,
+                         pair_f, n_pairs, kn, kt, mu, mu_roll, dt)
+        _contact_stress(h, ps, stress_c, stiff)
+        last = k + 1 == nsteps
+        L_end[:, :] = L
+        if last:
+            h_next, hmi = h, h
         else:
-            h_old[:, :] = h  # only used for V_mid below; the cell moved before the rebuild
-        ps = pair_forces(h, L, s, v, omega, radius, mass, pair_ij, pair_shift, pair_hist, pair_f,
-                         n_pairs, kn, kt, beta, mu, mu_roll, dt)
-        ks = gather_kick(pair_f, inc_ptr, inc, force, torque, v, omega, mass, inv_mass,
-                         inv_inertia, L, half)
-        s0, s1, s2 = stress[0], stress[1], stress[2]
-        _finish(h, ps, ks, stress, stiff)
-        acc[D_DAMP] += ps[7]
-        acc[D_FRIC] += ps[8]
-        acc[D_ROLL] += ps[9]
-        vmid = 0.5 * ((h_old[0, 0] * h_old[1, 1] - h_old[0, 1] * h_old[1, 0])
-                      + (h[0, 0] * h[1, 1] - h[0, 1] * h[1, 0]))
-        acc[WORK] += dt * vmid * 0.5 * ((s0 + stress[0]) * L[0, 0] + (s1 + stress[1]) * L[1, 1]
-                                        + (s2 + stress[2]) * (L[0, 1] + L[1, 0]))
-        if ks[3] == 0.0:
+            h_next, hmi = _next_cell(L, l_int, stress_c, stiff, rate, controlled, target0,
+                                     target1, (k0 + k + 2) / ktotal, dt, tau_servo, l_max, h)
+        ks = disc_pass(pair_f, inc_ptr, inc, force, torque, v, omega, s, s_ref, mass, inv_mass,
+                       inv_inertia, L_end, L, h_next, hmi, half, dt, True, not last)
+        _end_step(acc, h, L_end, dt, ps, ks, stress, stress_c)
+        if ks[3] != 0.0:
             return k + 1, NOT_FINITE
+        if last:
+            break
+        h[:, :] = h_next
+        if _begin_step(acc, L, dt, gdot_ref, h, h_ref, ks[4], r_max, skin):
+            return k + 1, NEED_REBUILD
     return nsteps, OK
 
 
@@ -392,15 +451,23 @@ class DivergenceError(RuntimeError):
     """The integration produced NaN/inf (time step too large, or a bad configuration)."""
 
 
+def _pair_constants(state: State, dyn: Dynamics) -> np.ndarray:
+    return pair_constants(state.pair_ij, state.n_pairs, state.radius, state.mass, dyn.law.kn,
+                          dyn.law.beta)
+
+
 def evaluate_forces(state: State, dyn: Dynamics) -> State:
     """Forces, torques, stress and stiffness at the current state (ξ histories untouched)."""
-    kn, kt, beta, mu, mu_roll = dyn.law.kernel_params()
-    ps = pair_forces(state.h, state.L, state.s, state.v, state.omega, state.radius, state.mass,
-                     state.pair_ij, state.pair_shift, state.pair_hist, state.pair_f,
-                     state.n_pairs, kn, kt, beta, mu, mu_roll, 0.0)
-    ks = gather_kick(state.pair_f, state.inc_ptr, state.inc, state.force, state.torque, state.v,
-                     state.omega, state.mass, state.inv_mass, state.inv_inertia, state.L, 0.0)
-    _finish(state.h, ps, ks, state.stress, state.stiff)
+    kn, kt, _, mu, mu_roll = dyn.law.kernel_params()
+    ps = pair_forces(state.h, state.L, state.s, state.v, state.omega, state.radius,
+                     _pair_constants(state, dyn), state.pair_ij, state.pair_shift,
+                     state.pair_hist, state.pair_f, state.n_pairs, kn, kt, mu, mu_roll, 0.0)
+    _contact_stress(state.h, ps, state.stress_contact, state.stiff)
+    none = np.zeros((2, 2))
+    ks = disc_pass(state.pair_f, state.inc_ptr, state.inc, state.force, state.torque, state.v,
+                   state.omega, state.s, state.s_ref, state.mass, state.inv_mass,
+                   state.inv_inertia, state.L, state.L, none, none, 0.0, 0.0, True, False)
+    state.stress[:] = state.stress_contact - ks[:3] / state.volume
     return state
 
 
@@ -412,20 +479,21 @@ def advance(state: State, dyn: Dynamics, nsteps: int, control: Control | None = 
     takes exactly the same steps.
     """
     control = control or Control.fixed()
-    kn, kt, beta, mu, mu_roll = dyn.law.kernel_params()
+    kn, kt, _, mu, mu_roll = dyn.law.kernel_params()
     r_max = float(state.radius.max())
     done_total, mid = 0, False
     controlled = np.ascontiguousarray(control.controlled, dtype=np.bool_)
+    const = _pair_constants(state, dyn)
     while done_total < nsteps:
         done, status = advance_kernel(
-            nsteps - done_total, mid, done_total, nsteps, dyn.dt, kn, kt, beta, mu, mu_roll,
-            dyn.skin, r_max, dyn.gdot_ref, dyn.tau_servo, dyn.l_max, state.radius, state.mass,
-            state.inv_mass, state.inv_inertia, state.s, state.v, state.omega, state.force,
-            state.torque, state.s_ref, state.h, state.h_ref, state.L, state.L_int,
+            nsteps - done_total, mid, done_total, nsteps, dyn.dt, kn, kt, mu, mu_roll,
+            dyn.skin, r_max, dyn.gdot_ref, dyn.tau_servo, dyn.l_max, state.radius, const,
+            state.mass, state.inv_mass, state.inv_inertia, state.s, state.v, state.omega,
+            state.force, state.torque, state.s_ref, state.h, state.h_ref, state.L, state.L_int,
             state.pair_ij, state.pair_shift, state.pair_hist, state.pair_f, state.n_pairs,
             state.inc_ptr, state.inc, np.asarray(control.rate, float), controlled,
             np.asarray(control.target0, float), np.asarray(control.target1, float),
-            state.stress, state.stiff, state.acc)
+            state.stress, state.stress_contact, state.stiff, state.acc)
         state.step += done
         done_total += done
         if status == NOT_FINITE:
@@ -434,6 +502,7 @@ def advance(state: State, dyn: Dynamics, nsteps: int, control: Control | None = 
                                   f"discs overlap far too much")
         if status == NEED_REBUILD:
             neighbours.rebuild(state, dyn.skin)
+            const = _pair_constants(state, dyn)
             mid = True
         else:
             mid = False

@@ -51,6 +51,15 @@ def cayley_step(h, L, dt):
     return out
 
 
+@njit(cache=True)
+def cayley_det(L, dt):
+    """det of the Cayley map: area ratio V_{n+1}/V_n = det(I + dt L/2) / det(I - dt L/2)."""
+    a = 0.5 * dt
+    dp = (1.0 + a * L[0, 0]) * (1.0 + a * L[1, 1]) - a * a * L[0, 1] * L[1, 0]
+    dm = (1.0 - a * L[0, 0]) * (1.0 - a * L[1, 1]) - a * a * L[0, 1] * L[1, 0]
+    return dp / dm
+
+
 def area(h: np.ndarray) -> float:
     """Cell area V = det h (> 0 for a right-handed basis)."""
     return float(h[0, 0] * h[1, 1] - h[0, 1] * h[1, 0])

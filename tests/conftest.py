@@ -1,11 +1,16 @@
-"""Shared test helpers."""
+"""Shared test helpers: model parameters and updates, small prepared DEM packings."""
 from pathlib import Path
 
+import numba
 import numpy as np
 import pytest
 
-from contfab.models import tiers
+from contfab.models import slip_planes, tiers
 from contfab.params import Params, load_params
+from dem.contact_law import ContactLaw
+from dem.integrator import dynamics
+from dem.particles import parse_radii, sample_radii
+from dem.prepare import compress_to_pressure, random_gas
 
 FIXED_PARAMS = Path(__file__).parent / "data" / "model_params.toml"
 
@@ -44,16 +49,14 @@ def stress_at(p, r, alpha):
     return np.array([-p + r * np.cos(2 * alpha), -p - r * np.cos(2 * alpha), r * np.sin(2 * alpha)])
 
 
-# --------------------------------------------------------------- DEM fixtures
-"""Shared DEM fixtures: small prepared packings, made once per test session."""
-import numba
-import numpy as np
-import pytest
+def fabric_terms(prm, c, a, bc, bs):
+    """slip_planes.fabric_terms of one state (its Jacobian built here)."""
+    dpz = np.empty((slip_planes.N_P, 4))
+    slip_planes.fabric_terms_jacobian(prm, dpz)
+    return slip_planes.fabric_terms(c, a, bc, bs, prm, dpz)
 
-from dem.contact_law import ContactLaw
-from dem.integrator import dynamics
-from dem.particles import parse_radii, sample_radii
-from dem.prepare import compress_to_pressure, random_gas
+
+# --------------------------------------------------------------- DEM fixtures
 
 
 # The machine is shared: an OpenMP barrier with a descheduled second thread costs

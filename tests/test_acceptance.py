@@ -2,7 +2,8 @@
 
 Reduced: N = 150, κ = 1e3, I = 1e-2 (the session fixtures). These still fail if dense and
 loose samples respond alike, if the fabric leaves the admissible set, or if the fabric
-does not turn on reversal. Full size: N = 2000, κ = 1e4, I = 1e-3 (acceptance 4) and
+does not turn on reversal. Full size: N = 2000, κ = 1e4, I <= 1e-3, to 50% axial strain
+(acceptance 4), and
 simple shear with reversal (acceptance 5); figures in the report of issue 2.
 """
 import numpy as np
@@ -56,16 +57,52 @@ def test_shear_reversal_turns_the_fabric_reduced(packing_frictional):
     assert all(r["admissibility"] >= 0 for r in rows)
 
 
+def _steady(rows, key, lo, hi):
+    """(mean, fluctuation, drift) of ``key`` over rows with lo <= -eps_yy <= hi: the
+    fluctuation is the standard deviation about a linear fit in ε (the drift is removed,
+    so a sample still dilating does not pass for a noisy steady one), the drift is the
+    fit's change across the window."""
+    e = np.array([-r["eps_yy"] for r in rows if lo <= -r["eps_yy"] <= hi])
+    x = np.array([r[key] for r in rows if lo <= -r["eps_yy"] <= hi])
+    slope, icpt = np.polyfit(e, x, 1)
+    return x.mean(), np.std(x - (slope * e + icpt), ddof=2), slope * (hi - lo)
+
+
 @pytest.mark.slow
 def test_dense_and_loose_biaxial_full_size():
-    dense = _biaxial(prepared(2000, 0.0, seed=7, kappa=1e4), 0.25, 1e-3, 1e4)
-    loose = _biaxial(prepared(2000, 0.5, seed=7, kappa=1e4), 0.25, 1e-3, 1e4)
-    peak = max(r["RP"] for r in dense)
-    tail = lambda rows, k: np.array([r[k] for r in rows if -r["eps_yy"] >= 0.15])  # noqa: E731
-    assert peak > tail(dense, "RP").mean() + 2 * tail(dense, "RP").std()
-    for k in ("RP", "c"):
-        d, lo = tail(dense, k), tail(loose, k)
-        assert abs(d.mean() - lo.mean()) < 2 * np.hypot(d.std(), lo.std())
+    """Acceptance 4: N = 2000, μ = 0.5, κ = 1e4, γ̇_ref = 4e-4 (measured I <= 1e-3).
+
+    Run to 50% axial strain: the dense sample localizes into a band along the cell diagonal
+    after its peak and is still dilating at 25% (its c drifts by -0.004 over 15-25%), so
+    the residual state is taken over 35-50%, where both samples are steady (drift below
+    the fluctuation). Measured (seed 7, helper report of issue 2): see the printed line.
+    """
+    gdot = 4e-4
+    ctl = {"L": {"yy": -1.0, "xy": 0.0, "yx": 0.0}, "sigma": {"xx": -1.0}}
+    path = parse_path({"name": "biaxial_50", "stage": [
+        dict(name="peak", length=0.02, output_every=0.0002, **ctl),
+        dict(name="compress", length=0.48, output_every=0.0025, **ctl)]})
+    runs = {}
+    for name, mu_prep in (("dense", 0.0), ("loose", 0.5)):
+        st = prepared(2000, mu_prep, seed=7, kappa=1e4)
+        dyn = make_dynamics(st, kappa=1e4, mu=0.5, gdot=gdot)
+        runner = PathRunner(path, dyn, gdot)
+        runs[name] = runner.run(st, runner.start(st)).rows
+    dense, loose = runs["dense"], runs["loose"]
+    # the dense peak is resolved: several rows before it, and it stands above the residual
+    k = int(np.argmax([r["RP"] for r in dense]))
+    res = {n: {q: _steady(rows, q, 0.35, 0.5) for q in ("RP", "c")} for n, rows in runs.items()}
+    print(f"\nacceptance 4: dense peak R/P {dense[k]['RP']:.3f} at eps_yy {dense[k]['eps_yy']:.4f}; "
+          + "; ".join(f"{n} residual R/P {v['RP'][0]:.3f} ± {v['RP'][1]:.3f} (drift {v['RP'][2]:+.3f}), "
+                      f"c {v['c'][0]:.4f} ± {v['c'][1]:.4f} (drift {v['c'][2]:+.4f})" for n, v in res.items())
+          + f"; max I {max(r['I'] for r in dense[1:] + loose[1:]):.2e}")
+    assert 3 <= k and -dense[k]["eps_yy"] < 0.02
+    assert dense[k]["RP"] > res["dense"]["RP"][0] + 3 * res["dense"]["RP"][1]
+    for q in ("RP", "c"):
+        (md, fd, dd), (ml, fl, dl) = res["dense"][q], res["loose"][q]
+        assert abs(dd) < fd and abs(dl) < fl                  # steady over the window
+        assert abs(md - ml) < np.hypot(fd, fl)                 # same within the fluctuation
+    assert max(r["I"] for r in dense[1:] + loose[1:]) <= 1e-3
     assert all(r["admissibility"] >= 0 for r in dense + loose)
 
 

@@ -2,16 +2,20 @@
 import json
 from types import SimpleNamespace
 
+import numpy as np
+
+from conftest import fabric_terms
 from contfab.bench import model
 from contfab.cli import main
+from contfab.models import slip_planes as sp
 
 
 def test_bench_model_figures_at_a_yielding_state():
     figures = model.run(SimpleNamespace(repeats=1, points=2000))
-    for tier in model.BENCH_TIERS:
-        assert figures[f"tier{tier}_plastic_fraction"] == 1.0
-        assert figures[f"tier{tier}_updates_per_s_per_core"] > 0
-        assert figures[f"tier{tier}_vs_numpy_elastic"] > 0
+    for name in model.BENCH_CASES:
+        assert figures[f"{name}_plastic_fraction"] == 1.0
+        assert figures[f"{name}_updates_per_s_per_core"] > 0
+        assert figures[f"{name}_vs_numpy_elastic"] > 0
     assert figures["points"] == 2000
 
 
@@ -20,3 +24,19 @@ def test_bench_command_prints_one_json_object(capsys, monkeypatch):
     assert main(["bench", "model", "--json", "--repeats", "1"]) == 0
     figures = json.loads(capsys.readouterr().out)
     assert figures["points"] == 1000 and "tier1_updates_per_s_per_core" in figures
+
+
+def test_anisotropic_tier2_case_starts_from_an_anisotropic_fabric_on_the_yield_surface():
+    params = model.case_params(anisotropic=True)
+    prm = params.array(2)
+    assert np.radians(model.ANISOTROPY["a2_deg"]) == prm[10] != 0.0
+    stress, state, dstrain, dspin = model.yielding_points(params, 2, 500, anisotropic=True)
+    ratio = np.hypot(state[:, 3], state[:, 4]) / state[:, 2]
+    # the shear onto the surface moves the fabric a little from B/A = B_RATIO
+    assert np.all(np.abs(ratio - model.B_RATIO) < 0.02)
+    for i in range(0, 500, 50):
+        fab = fabric_terms(prm, *state[i, 1:])
+        scale = np.hypot(0.5 * (stress[i, 0] + stress[i, 1]),
+                         np.hypot(0.5 * (stress[i, 0] - stress[i, 1]), stress[i, 2]))
+        f = sp.yield_value(*stress[i], fab, prm[16], 64, np.array([0.3, -0.3]))
+        assert abs(f) <= 1e-10 * scale

@@ -87,11 +87,11 @@ def test_history_turns_with_a_rigidly_rotating_pair():
         st.s[:] = xr / 10.0
         st.v[:] = w * np.stack([-(xr - c)[:, 1], (xr - c)[:, 0]], axis=1)
         st.omega[:] = w
-        from dem.integrator import pair_forces
+        from dem.integrator import pair_constants, pair_forces
         kn, kt, beta, mu, mr = law.kernel_params()
-        pair_forces(st.h, st.L, st.s, st.v, st.omega, st.radius, st.mass, st.pair_ij,
-                    st.pair_shift, st.pair_hist, st.pair_f, st.n_pairs, kn, kt, beta, mu, mr,
-                    dyn.dt)
+        const = pair_constants(st.pair_ij, st.n_pairs, st.radius, st.mass, kn, beta)
+        pair_forces(st.h, st.L, st.s, st.v, st.omega, st.radius, const, st.pair_ij,
+                    st.pair_shift, st.pair_hist, st.pair_f, st.n_pairs, kn, kt, mu, mr, dyn.dt)
     f = st.pair_f[0, :2]
     n = np.array([math.cos(angle), math.sin(angle)])
     ft = f @ np.array([-n[1], n[0]])

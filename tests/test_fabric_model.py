@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from conftest import model_params, stress_at, update
+from conftest import fabric_terms, model_params, stress_at, update
 from contfab.models import fabric_model as fm
 from contfab.models import slip_planes as sp
 from contfab.models import fabric_law
@@ -21,7 +21,7 @@ def _state(c, a, b, theta_p, gp=0.0):
 
 def _yield(prm, stress, c, a, bc, bs):
     th = np.array([0.3, -0.3])
-    return sp.yield_value(*stress, sp.fabric_terms(c, a, bc, bs, prm), prm[16], 64, th)
+    return sp.yield_value(*stress, fabric_terms(prm, c, a, bc, bs), prm[16], 64, th)
 
 
 def _update(params, stress, state, de, dw=0.0):
@@ -159,6 +159,38 @@ def test_extreme_increments_give_finite_results(de, size, ratio, p, dw):
     assert status != fm.STATUS_FAILED
     assert np.isfinite(s).all() and np.isfinite(q).all() and np.isfinite(t).all()
     assert admissibility_margin(q[2], np.hypot(q[3], q[4])) >= 0.0
+
+
+def test_huge_increment_is_solved_by_continuation_not_failed():
+    # Found by the test above: from σ = 0, a compressive shear of 10 (1000 %) defeated Newton
+    # from both starts (failed; nearby sizes went to the apex with c ~ 1e4). The face solution
+    # continues smoothly from the sizes Newton solves directly (10^0.9 .. 10^0.94).
+    prm = model_params(**ANISO)
+    sizes = np.linspace(0.9, 1.0, 6)
+    runs = [_update(prm, np.zeros(3), _state(0.81, 0.95, 0.3, 0.2),
+                    10.0 ** size * np.array([0.0, -1.0, -1.0])) for size in sizes]
+    assert all(r[3] == fm.STATUS_FACE for r in runs)
+    stress = np.array([r[0] for r in runs])
+    c = np.array([r[1][1] for r in runs])
+    assert np.all(np.diff(stress[:, 1]) < 0) and np.all(np.diff(c) < 0) and c[-1] > 0.75
+    # smooth: second differences small against first differences
+    assert np.abs(np.diff(stress, 2, axis=0)).max() < 0.1 * np.abs(np.diff(stress, axis=0)).max()
+
+
+def test_near_apex_return_with_strong_fabric_converges():
+    # Found by the random-increment test below (seed 98, mean-field balance law): from σ = 0
+    # with B/A = 0.6, a shear increment with R_tr/P_tr = 7.9 has a face solution (P = 0.21,
+    # found independently by least squares), but Newton with the condensed planes stalled in
+    # a valley of max|residual| ~ 0.04 from every start, so step cutting could not help
+    # (σ_n = 0 makes the problem scale-free). The exact-plane restart from the start solves it.
+    prm = model_params(**dict(ANISO, kappa_a=1.0, k_c=1.0, k_o=1.0))
+    state = np.array([1.0476474103810387, 0.7904773607342523, 0.8588591323369518,
+                      0.4769382956571223, 0.18437266512548453])
+    de = np.array([0.00074567845298994, -0.00086892364336945, 0.00016599870797043])
+    s, q, _, status = _update(prm, np.zeros(3), state, de, -0.0012590760644875692)
+    assert status == fm.STATUS_FACE
+    assert -0.5 * (s[0] + s[1]) == pytest.approx(0.2132, abs=1e-4)
+    assert _yield(prm.array(2), s, *q[1:]) == pytest.approx(0.0, abs=1e-12)
 
 
 def _wandering_increments(rng, n, steps, scale):

@@ -57,3 +57,36 @@ def test_g2_exact_reproduces_seed_002_values():
     uni = 0.5 * (0.5 + (np.arange(100_000) + 0.5) / 100_000)
     assert round(g2_exact(uni), 3) == 1.085
     assert math.isclose(g2_exact(np.full(10, 0.5)), 1.0)
+
+
+def _sheared(profile, n=1600, gamma=0.02, seed=4):
+    """A random configuration displaced by u = gamma * profile(s) (reduced s at start)."""
+    from dem.measure import localization_index
+
+    rng = np.random.default_rng(seed)
+    s0 = rng.random((n, 2))
+    h = np.diag([40.0, 40.0])
+    st = new_state(np.full(n, 0.5), s0, h)
+    st.s = s0 + np.linalg.solve(h, (gamma * profile(s0)).T).T
+    return localization_index(st, s0, h), math.isqrt(n // 64)
+
+
+def test_localization_index_is_zero_for_affine_and_sqrt_g_minus_1_for_a_one_row_band():
+    affine, _ = _sheared(lambda s: np.stack([40.0 * s[:, 1], 0.0 * s[:, 1]], 1))
+    assert affine < 1e-9
+    # all the shear in the middle row of cells (G = 5: reduced y in [0.4, 0.6])
+    band, g = _sheared(lambda s: np.stack([40.0 * np.clip(s[:, 1] - 0.4, 0.0, 0.2), 0.0 * s[:, 1]], 1))
+    assert g == 5 and abs(band - math.sqrt(g - 1)) < 1e-9
+
+
+def test_localization_index_sees_a_diagonal_band():
+    # a band along the diagonal of the cell (a row-bin profile would average it out):
+    # displacement along (1, 1) ramping across the strip 0 <= s_x - s_y < 0.2
+    def diag(s):
+        t = np.clip(np.mod(s[:, 0] - s[:, 1], 1.0) / 0.2, 0.0, 1.0)
+        return 8.0 * np.stack([t, t], 1)
+
+    band, _ = _sheared(diag)
+    noise, _ = _sheared(lambda s: np.random.default_rng(1).normal(size=s.shape) * 2.0
+                        + np.stack([40.0 * s[:, 1], 0.0 * s[:, 1]], 1))
+    assert band > 1.0 and noise < 0.5

@@ -28,7 +28,7 @@ def test_point_writes_the_dem_columns_a_sidecar_and_plots(tmp_path, capsys):
     assert str(out / "history.csv") in printed and str(out / "history.json") in printed
     header, rows = read_csv(out / "history.csv")
     assert tuple(header) == HISTORY_COLUMNS + mp.EXTRA_COLUMNS
-    assert len(rows) == 101                       # τ = 0 and every 0.0025 to 0.25
+    assert len(rows) == 193          # τ = 0, every 0.0002 to 0.02, then every 0.0025 to 0.25
     fabric = [header.index(c) for c in ("z", "A", "Bc", "Bs", "B", "theta_p")]
     assert all(row[i] == "" for row in rows for i in fabric)       # tier 1: no fabric
     sxx = np.array([float(r[header.index("sxx")]) for r in rows])
@@ -37,7 +37,7 @@ def test_point_writes_the_dem_columns_a_sidecar_and_plots(tmp_path, capsys):
     meta = json.loads((out / "history.json").read_text())
     assert meta["tier"] == 1 and meta["path"]["name"] == "biaxial"
     assert meta["params"]["regularization"]["lambda"] == 1000.0
-    assert meta["increments"]["increment"] == 2.5e-3 and meta["increments"]["taken"] == 100
+    assert meta["increments"]["increment"] == 2.5e-3 and meta["increments"]["taken"] == 192
     assert meta["versions"]["contfab"] and meta["timing"]["total_s"] > 0
     assert (out / "history.png").stat().st_size > 10_000
     assert sorted(p.name for p in out.iterdir()) == ["history.csv", "history.json",

@@ -21,7 +21,10 @@ def test_biaxial_stage_follows_rate_stops_and_aligns_fabric(packing_frictional):
     last = rows[-1]
     # stopped at the first check past eps_yy = -0.04 (checks every 1/10 output interval)
     assert -0.04 - 0.0006 < last["eps_yy"] <= -0.04
-    assert all(abs(r["sxx"] + 1.0) < 0.02 for r in rows)
+    # N = 150 at I = 1e-2: the row-to-row scatter of σxx is itself ~0.01; over 5 samples
+    # the largest deviation from the target was 0.009-0.026 (the servo holds the mean)
+    assert all(abs(r["sxx"] + 1.0) < 0.035 for r in rows)
+    assert abs(np.mean([r["sxx"] for r in rows[1:]]) + 1.0) < 0.01
     assert last["RP"] > 0.15 and last["syy"] < -1.3
     # contact normals gather along the compression axis y: θp near ±π/2
     assert abs(abs(last["theta_p"]) - np.pi / 2) < 0.3 and last["B"] > 0.05

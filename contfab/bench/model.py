@@ -1,14 +1,17 @@
 """``contfab bench model``: constitutive updates per second per core, at a yielding state.
 
-Each tier updates the same points: stresses on its yield surface (P in [0.5, 2] p_ref,
-random principal directions) loaded further along their deviator by a strain
+Each case updates the same kind of points: stresses on its yield surface (P in [0.5, 2]
+p_ref, random principal directions) loaded further along their deviator by a strain
 increment of 1e-4 with a small random spin, so every point takes the plastic branch
-(the benchmark reports the plastic fraction). The kernel runs on one
-thread with preallocated outputs; the reference is a plain numpy elastic update σ + C Δε
-of the same points in the same run, and each tier's rate is also given as a ratio to it.
-Timings are medians of ``--repeats`` runs of the process's CPU time (both sides are
-single-threaded, so this is the per-core figure even when other jobs share the cores;
-``*_wall`` figures give the wall-clock rate too).
+(the benchmark reports the plastic fraction). Tier 2 is measured twice: with the default
+parameters (isotropic planes; the fabric starts isotropic), and as ``tier2_aniso`` with
+anisotropic plane friction and dilatancy (:data:`ANISOTROPY`) and an anisotropic fabric
+(B/A = :data:`B_RATIO`, θp random), where the plane search and the fabric coupling do
+their full work. The kernel runs on one thread with preallocated outputs; the reference is
+a plain numpy elastic update σ + C Δε of the same points in the same run, and each case's
+rate is also given as a ratio to it. Timings are medians of ``--repeats`` runs of the
+process's CPU time (both sides are single-threaded, so this is the per-core figure even
+when other jobs share the cores; ``*_wall`` figures give the wall-clock rate too).
 """
 from __future__ import annotations
 
@@ -22,28 +25,47 @@ from contfab.models import tiers
 from contfab.params import default_params
 from contfab.tensors import isotropic_stiffness
 
-BENCH_TIERS = (0, 1, 2)
-"""Tiers measured (a new tier: add it here once registered in tiers.KERNELS)."""
+BENCH_CASES = {"tier0": (0, False), "tier1": (1, False), "tier2": (2, False),
+               "tier2_aniso": (2, True)}
+"""Case name -> (tier, anisotropic). A new tier: add it here once registered in tiers.KERNELS."""
 POINTS = 200_000
 STRAIN = 1e-4
+ANISOTROPY = dict(a1_deg=3.0, a2_deg=12.0, a3_deg=20.0, b0_deg=1.0, b1_deg=2.0, b2_deg=8.0,
+                  b3_deg=-30.0)
+"""[tier2] plane anisotropy of the anisotropic case (the shipped defaults are isotropic
+placeholders until the calibration; these are the values the tier-2 tests use)."""
+B_RATIO = 0.25
+"""B/A of the anisotropic case's start fabric (the DEM's steady biaxial anisotropy)."""
 
 
-def yielding_points(params, tier: int, n: int, seed: int = 0):
+def case_params(anisotropic: bool):
+    """The default parameters, with :data:`ANISOTROPY` for the anisotropic case."""
+    params = default_params()
+    return params.replace("tier2", **ANISOTROPY) if anisotropic else params
+
+
+def yielding_points(params, tier: int, n: int, seed: int = 0, anisotropic: bool = False):
     """(stress_n, state_n, dstrain, dspin): points on the yield surface, loaded further.
 
-    Tier-agnostic: isotropic states (P in [0.5, 2] p_ref, the ``[initial]`` state with c
-    spread over c0 ± 0.01) are first sheared far past yield by one update, which returns
-    them onto the yield surface; the benchmark increment continues that shear by STRAIN.
+    Tier-agnostic: isotropic stresses (P in [0.5, 2] p_ref, the ``[initial]`` state with c
+    spread over c0 ± 0.01; with ``anisotropic`` the fabric has B = B_RATIO·A along a random
+    θp) are first sheared far past yield by one update, which returns them onto the yield
+    surface; the benchmark increment continues that shear by STRAIN.
     """
     rng = np.random.default_rng(seed)
     p = params.p_ref * rng.uniform(0.5, 2.0, n)
     stress = np.stack([-p, -p, np.zeros(n)], axis=1)
     two = 2.0 * rng.uniform(0.0, np.pi, n)
     direction = np.stack([np.cos(two), -np.cos(two), 2.0 * np.sin(two)], axis=1)
+    names = tiers.STATE_NAMES[tier]
     state = tiers.initial_state(tier, params, n)
-    if "c" in tiers.STATE_NAMES[tier]:      # dense and loose: the local solve has work to do
-        column = tiers.STATE_NAMES[tier].index("c")
-        state[:, column] += rng.uniform(-0.01, 0.01, n)
+    if "c" in names:      # dense and loose: the local solve has work to do
+        state[:, names.index("c")] += rng.uniform(-0.01, 0.01, n)
+    if anisotropic:
+        b = B_RATIO * state[:, names.index("A")]
+        two_theta_p = 2.0 * rng.uniform(0.0, np.pi, n)
+        state[:, names.index("Bc")] = b * np.cos(two_theta_p)
+        state[:, names.index("Bs")] = b * np.sin(two_theta_p)
     shear = params.array(tier)[1]
     onto = tiers.update(tier, stress, state, 2.0 * params.p_ref / shear * direction,
                         np.zeros(n), params)
@@ -54,13 +76,14 @@ def yielding_points(params, tier: int, n: int, seed: int = 0):
 def run(args) -> dict:
     repeats = getattr(args, "repeats", 5)
     n = getattr(args, "points", POINTS)
-    params = default_params()
     threads = numba.get_num_threads()
     numba.set_num_threads(1)
     figures = {"points": n}
     try:
-        for tier in BENCH_TIERS:
-            stress, state, dstrain, dspin = yielding_points(params, tier, n)
+        for name, (tier, anisotropic) in BENCH_CASES.items():
+            params = case_params(anisotropic)
+            stress, state, dstrain, dspin = yielding_points(params, tier, n,
+                                                            anisotropic=anisotropic)
             out = tiers.allocate(tier, n)
             prm = params.array(tier)
             kernel = tiers.KERNELS[tier]
@@ -69,17 +92,17 @@ def run(args) -> dict:
                 kernel(stress, state, dstrain, dspin, prm, out.stress, out.state, out.tangent,
                        out.status)
 
-            c = isotropic_stiffness(*params.array(tier)[:2])
+            c = isotropic_stiffness(*prm[:2])
 
             def elastic():
                 return stress + np.einsum("ij,nj->ni", c, dstrain)
 
             t_model = median_seconds(model, repeats=repeats, clock=time.process_time)
             t_elastic = median_seconds(elastic, repeats=repeats, clock=time.process_time)
-            figures[f"tier{tier}_updates_per_s_per_core"] = n / t_model
-            figures[f"tier{tier}_vs_numpy_elastic"] = t_elastic / t_model
-            figures[f"tier{tier}_plastic_fraction"] = float(np.mean(out.status == 1))
-            figures[f"tier{tier}_updates_per_s_wall"] = n / median_seconds(model, repeats=repeats)
+            figures[f"{name}_updates_per_s_per_core"] = n / t_model
+            figures[f"{name}_vs_numpy_elastic"] = t_elastic / t_model
+            figures[f"{name}_plastic_fraction"] = float(np.mean(out.status == 1))
+            figures[f"{name}_updates_per_s_wall"] = n / median_seconds(model, repeats=repeats)
         figures["numpy_elastic_updates_per_s_per_core"] = n / t_elastic
     finally:
         numba.set_num_threads(threads)

@@ -23,6 +23,8 @@ Yield f and flow N: :mod:`contfab.models.slip_planes`; fabric laws:
    exactly as in tier 1 (which makes the reduction to tier 1 exact). Local Newton with the
    analytic Jacobian (8x8; the slip planes condensed into it), from one cutting-plane step
    (near the surface) or tier 1's closed-form coaxial return; backtracking on max |residual|.
+   Where Newton fails from both (increments of hundreds of percent), the same problem is
+   reached by continuation in the trial stress (:func:`_continuation_return`).
    The face solution is accepted when it converged with Δγ >= 0 and P > 0 (status 1).
 5. Apex (status 2): σ = 0, all of C⁻¹σ_tr plastic, c = c_n exp(P_tr/K), zero tangent
    (as tier 1), when C⁻¹σ_tr dilates at least as much as the flow: tier 1's criterion
@@ -89,6 +91,8 @@ NEWTON_TOL_LAST = 1e-8
 """Local solve: from max |residual| below this the Newton step is the last (no re-evaluation)."""
 PLANE_STEP_TOL = 1e-9
 """Local solve: the planes' own Newton steps (radians) at convergence (values exact to ~δθ²)."""
+CONTINUATION_STEPS = 4
+"""Fallback of the local solve: trial stresses σ_n + (k/this) CΔε, k = 1..this, in turn."""
 
 
 # --------------------------------------------------------------------------- small linear algebra
@@ -140,7 +144,7 @@ def _lu_solve(lu, piv, b):
 
 # --------------------------------------------------------------------------- the local solve
 
-Scratch = namedtuple("Scratch", "ttr x theta pl yf res jac piv dx xt tt dth dpz fq dq ws")
+Scratch = namedtuple("Scratch", "ttr x theta pl yf res jac piv dx xt x0 dth dpz fq dq ws")
 """Per-range work arrays of the local solve (allocated once per range, never per point)."""
 
 
@@ -170,7 +174,7 @@ def _residual(x, c_n, qn, prm, search, sc, s_ref):
     if not c > 0.0:
         return np.inf, False
     yf = sc.yf
-    fab = fabric_terms(c, x[5], x[6], x[7], prm)
+    fab = fabric_terms(c, x[5], x[6], x[7], prm, sc.dpz)
     yield_and_flow(x[0], x[1], x[2], fab, prm[16], search, 0, sc.theta, sc.pl, yf)
     n0 = yf[YF_N]
     n1 = yf[YF_N + 1]
@@ -246,23 +250,25 @@ def _residual(x, c_n, qn, prm, search, sc, s_ref):
 
 
 @njit(cache=True, error_model="numpy")
-def _dilatancy_range(c, a, bc, bs, prm):
+def _dilatancy_range(c, a, bc, bs, prm, dpz):
     """(sin ψ̄, sin ψ_min) at c: the isotropic part of ψ(θ) and its smallest value over planes."""
-    phi0, pc, ps, psi0, qc, qs, _, _, phi_lo, phi_hi = fabric_terms(c, a, bc, bs, prm)
+    phi0, pc, ps, psi0, qc, qs, _, _, phi_lo, phi_hi = fabric_terms(c, a, bc, bs, prm, dpz)
     phi = min(max(phi0, phi_lo), phi_hi)
     amp = np.hypot(qc, qs)
     return np.sin(min(max(psi0, -phi), phi)), np.sin(max(psi0 - amp, -phi_hi))
 
 
 @njit(cache=True, error_model="numpy")
-def _initial_guess(c_n, qn, prm, sc):
-    """Tier 1's closed-form coaxial return with the isotropic part of φ(θ), ψ(θ) at c_n, the
-    fabric at its start value, and the planes at tier 1's θ = α ± (π/4 - φ/2)."""
+def _initial_guess(c_n, qn, prm, sc, planes):
+    """Tier 1's closed-form coaxial return with the isotropic part of φ(θ), ψ(θ) at c_n and
+    the fabric at its start value; with ``planes`` also the planes at tier 1's
+    θ = α ± (π/4 - φ/2)."""
     bulk = prm[0]
     shear = prm[1]
     ttr = sc.ttr
     x = sc.x
-    phi0, _, _, psi0, _, _, _, _, phi_lo, phi_hi = fabric_terms(c_n, qn[0], qn[1], qn[2], prm)
+    phi0, _, _, psi0, _, _, _, _, phi_lo, phi_hi = fabric_terms(c_n, qn[0], qn[1], qn[2], prm,
+                                                                sc.dpz)
     phi = min(max(phi0, phi_lo), phi_hi)
     psi = min(max(psi0, -phi), phi)
     m = 0.5 * (ttr[0] + ttr[1])
@@ -286,16 +292,18 @@ def _initial_guess(c_n, qn, prm, sc):
     x[5] = qn[0]
     x[6] = qn[1]
     x[7] = qn[2]
-    alpha = 0.5 * np.arctan2(sa, ca)
-    sc.theta[0] = alpha + 0.25 * np.pi - 0.5 * phi
-    sc.theta[1] = alpha - 0.25 * np.pi + 0.5 * phi
+    if planes:
+        alpha = 0.5 * np.arctan2(sa, ca)
+        sc.theta[0] = alpha + 0.25 * np.pi - 0.5 * phi
+        sc.theta[1] = alpha - 0.25 * np.pi + 0.5 * phi
 
 
 @njit(cache=True, error_model="numpy")
 def _cutting_plane_guess(c_n, qn, fab, prm, sc):
     """One cutting-plane step from σ_tr (planes at their maxima from the elastic check):
     Δγ = f_tr / (∂f/∂σ · C N), σ = σ_tr - Δγ C N, c = c_n exp(-Δγ tr N), fabric at its start
-    value — first order in the step, so small increments start O(Δε²) from the solution."""
+    value — first order in the step, so small increments start O(Δε²) from the solution.
+    False (``sc.x`` untouched) where the step is undefined (∂f/∂σ · C N <= 0)."""
     bulk = prm[0]
     shear = prm[1]
     ttr = sc.ttr
@@ -310,7 +318,7 @@ def _cutting_plane_guess(c_n, qn, fab, prm, sc):
     cn2 = shear * n2
     den = yf[YF_FS] * cn0 + yf[YF_FS + 1] * cn1 + yf[YF_FS + 2] * cn2
     if not den > 0.0:
-        return
+        return False
     dgam = yf[YF_F] / den
     x[0] = ttr[0] - dgam * cn0
     x[1] = ttr[1] - dgam * cn1
@@ -320,6 +328,7 @@ def _cutting_plane_guess(c_n, qn, fab, prm, sc):
     x[5] = qn[0]
     x[6] = qn[1]
     x[7] = qn[2]
+    return True
 
 
 @njit(cache=True, error_model="numpy")
@@ -329,14 +338,18 @@ def _face_return(c_n, qn, prm, sc, s_ref):
 
     The planes move with the condensed step δθ_k + θ_σ·dσ + θ_p·dp; the line search
     backtracks on max |residual|. If it cannot progress (near the apex the planes are
-    ill-conditioned), the solve continues with the planes re-searched to their exact
-    maxima at every evaluation. On success ``sc.jac`` holds the LU factors of the Jacobian
+    ill-conditioned), the solve restarts from ``sc.x`` with the planes re-searched to their
+    exact maxima at every evaluation. On success ``sc.jac`` holds the LU factors of the Jacobian
     at the solution, ``sc.yf`` the yield/flow terms and ``sc.fq`` the fabric there.
     """
     x = sc.x
     xt = sc.xt
     dx = sc.dx
     pl = sc.pl
+    for i in range(N_X):
+        sc.x0[i] = x[i]
+    start0 = sc.theta[0]
+    start1 = sc.theta[1]
     search = False
     err, projected = _residual(x, c_n, qn, prm, search, sc, s_ref)
     err_prev = np.inf
@@ -389,13 +402,44 @@ def _face_return(c_n, qn, prm, sc, s_ref):
             err_prev = err
             err = err_t
         elif not search:
+            # Restart from the start: where the condensed planes lead it astray, the iterate
+            # reached can lie in a valley of the residual that exact planes do not leave.
             search = True
-            sc.theta[0] = theta0
-            sc.theta[1] = theta1
+            for i in range(N_X):
+                x[i] = sc.x0[i]
+            sc.theta[0] = start0
+            sc.theta[1] = start1
             err, projected = _residual(x, c_n, qn, prm, search, sc, s_ref)
+            err_prev = np.inf
         else:
             return False, False
     return False, False
+
+
+@njit(cache=True, error_model="numpy")
+def _continuation_return(rotated, c_n, qn, prm, sc):
+    """The face solve by continuation in the trial stress, for increments too large for
+    Newton from one start: the step's backward-Euler problem with σ_tr(t) = σ_n + t CΔε
+    (``rotated`` = σ_n, ``sc.ttr`` = σ_tr(1)) at t = 1/k_max, 2/k_max, .., 1, each solve
+    starting from the last. Only the last is the step's own problem; returns as
+    :func:`_face_return`, with ``sc.ttr`` restored."""
+    ttr = sc.ttr
+    full = (ttr[0], ttr[1], ttr[2])
+    face = False
+    projected = False
+    for k in range(1, CONTINUATION_STEPS + 1):
+        t = k / CONTINUATION_STEPS
+        for j in range(3):
+            ttr[j] = rotated[j] + t * (full[j] - rotated[j])
+        s_ref = np.hypot(0.5 * (ttr[0] + ttr[1]), np.hypot(0.5 * (ttr[0] - ttr[1]), ttr[2]))
+        if k == 1:
+            _initial_guess(c_n, qn, prm, sc, True)
+        face, projected = _face_return(c_n, qn, prm, sc, s_ref)
+        if not face:
+            break
+    for j in range(3):
+        ttr[j] = full[j]
+    return face, projected
 
 
 # --------------------------------------------------------------------------- one point
@@ -426,9 +470,11 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
     ttr[0] = rxx + (bulk + shear) * dexx + (bulk - shear) * deyy
     ttr[1] = ryy + (bulk - shear) * dexx + (bulk + shear) * deyy
     ttr[2] = rxy + shear * dgxy
-    _initial_guess(c_n, (q0, bc, bs), prm, sc)
-    fab = fabric_terms(c_n, q0, bc, bs, prm)
-    f_tr = yield_value(ttr[0], ttr[1], ttr[2], fab, prm[16], int(prm[17]), sc.theta)
+    n_search = int(prm[17])
+    if n_search == 0:        # the tier-1 planes are the plane search's warm start
+        _initial_guess(c_n, (q0, bc, bs), prm, sc, True)
+    fab = fabric_terms(c_n, q0, bc, bs, prm, sc.dpz)
+    f_tr = yield_value(ttr[0], ttr[1], ttr[2], fab, prm[16], n_search, sc.theta)
     state[i, 0] = state_n[i, 0]
     state[i, 1] = c_n
     state[i, 2] = q0
@@ -445,28 +491,35 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
     qs = (q0, bc, bs)
     p_tr = -0.5 * (ttr[0] + ttr[1])
     r_tr = np.hypot(0.5 * (ttr[0] - ttr[1]), ttr[2])
-    # The apex first, as tier 1: at c_apex, C⁻¹σ_tr at least as dilatant as the flow.
+    # The apex first, as tier 1: at c_apex, C⁻¹σ_tr at least as dilatant as the flow (only
+    # possible where G P_tr <= K R_tr, as |sin ψ| < 1).
     c_apex = c_n * np.exp(p_tr / bulk)
-    spsi_iso, spsi_min = _dilatancy_range(c_apex, q0, bc, bs, prm)
     face = False
     projected = False
     # (and a plastic trial at a stress too small to resolve — |σ_tr| < 1e-200 (K+G), where
     # Newton's arithmetic underflows — is σ = 0 to that accuracy)
-    apex = shear * p_tr + bulk * spsi_iso * r_tr <= 0.0 or s_ref < 1e-200 * (bulk + shear)
+    apex = s_ref < 1e-200 * (bulk + shear)
+    if not apex and shear * p_tr <= bulk * r_tr:
+        spsi_iso, _ = _dilatancy_range(c_apex, q0, bc, bs, prm, sc.dpz)
+        apex = shear * p_tr + bulk * spsi_iso * r_tr <= 0.0
     if not apex:
         # Near the surface (the common case in a converging global iteration) one cutting-
         # plane step from σ_tr is the better start; otherwise, or if that solve fails,
         # tier 1's coaxial return.
         near = f_tr <= CUTTING_PLANE_RANGE * s_ref
-        if near:
-            _cutting_plane_guess(c_n, qs, fab, prm, sc)
+        if not (near and _cutting_plane_guess(c_n, qs, fab, prm, sc)):
+            _initial_guess(c_n, qs, prm, sc, False)
         face, projected = _face_return(c_n, qs, prm, sc, s_ref)
         if near and not face:
-            _initial_guess(c_n, qs, prm, sc)
+            _initial_guess(c_n, qs, prm, sc, True)
             face, projected = _face_return(c_n, qs, prm, sc, s_ref)
+        if not face:
+            face, projected = _continuation_return((rxx, ryy, rxy), c_n, qs, prm, sc)
         # No face point found: the material separates if some plane's flow is less
         # dilatant than C⁻¹σ_tr; otherwise the local solve failed.
-        apex = not face and shear * p_tr + bulk * spsi_min * r_tr <= 0.0
+        if not face:
+            _, spsi_min = _dilatancy_range(c_apex, q0, bc, bs, prm, sc.dpz)
+            apex = shear * p_tr + bulk * spsi_min * r_tr <= 0.0
     x = sc.x
     if face:
         for j in range(3):

@@ -269,30 +269,8 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
 
 
 @njit(cache=True, error_model="numpy")
-def fabric_terms(c, a, bc, bs, prm):
-    """The per-state constants ``fab`` of :func:`plane_terms` (layout of ``prm``: fabric_model).
-
-    (Bc', Bs') = fabric rotated by -a3/2 gives a2 B cos(2(θ-θp) + a3) = pc cos 2θ + ps sin 2θ.
-    """
-    dphi = prm[3]
-    dpsi = prm[4]
-    c_star = prm[5]
-    a2 = prm[10]
-    a3 = prm[11]
-    b2 = prm[14]
-    b3 = prm[15]
-    phi0 = prm[8] + dphi * (c - c_star) + prm[9] * a
-    psi0 = prm[12] + dpsi * (c - c_star) + prm[13] * a
-    pc = a2 * (bc * np.cos(a3) + bs * np.sin(a3))
-    ps = a2 * (bs * np.cos(a3) - bc * np.sin(a3))
-    qc = b2 * (bc * np.cos(b3) + bs * np.sin(b3))
-    qs = b2 * (bs * np.cos(b3) - bc * np.sin(b3))
-    return phi0, pc, ps, psi0, qc, qs, dphi, dpsi, prm[6], prm[7]
-
-
-@njit(cache=True, error_model="numpy")
 def fabric_terms_jacobian(prm, out):
-    """``out`` (6, 4) ← ∂p/∂(c, A, Bc, Bs) of :func:`fabric_terms` (constant: p is linear)."""
+    """``out`` (6, 4) ← ∂p/∂(c, A, Bc, Bs) of :func:`fabric_terms` (constant: p is affine)."""
     out[:, :] = 0.0
     out[0, 0] = prm[3]
     out[3, 0] = prm[4]
@@ -303,6 +281,24 @@ def fabric_terms_jacobian(prm, out):
         out[row, 3] = amp * np.sin(ang)
         out[row + 1, 2] = -amp * np.sin(ang)     # ps = amp (Bs cos a - Bc sin a)
         out[row + 1, 3] = amp * np.cos(ang)
+
+
+@njit(cache=True, error_model="numpy")
+def fabric_terms(c, a, bc, bs, prm, dpz):
+    """The per-state constants ``fab`` of :func:`plane_terms` (layout of ``prm``: fabric_model).
+
+    (Bc', Bs') = fabric rotated by -a3/2 gives a2 B cos(2(θ-θp) + a3) = pc cos 2θ + ps sin 2θ.
+    p is affine in (c, A, Bc, Bs) with the constant Jacobian ``dpz`` of
+    :func:`fabric_terms_jacobian` (which holds the trigonometry of a3, b3, done once).
+    """
+    dc = c - prm[5]
+    phi0 = prm[8] + dpz[0, 0] * dc + dpz[0, 1] * a
+    psi0 = prm[12] + dpz[3, 0] * dc + dpz[3, 1] * a
+    pc = dpz[1, 2] * bc + dpz[1, 3] * bs
+    ps = dpz[2, 2] * bc + dpz[2, 3] * bs
+    qc = dpz[4, 2] * bc + dpz[4, 3] * bs
+    qs = dpz[5, 2] * bc + dpz[5, 3] * bs
+    return phi0, pc, ps, psi0, qc, qs, prm[3], prm[4], prm[6], prm[7]
 
 
 @njit(cache=True, error_model="numpy")

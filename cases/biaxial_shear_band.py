@@ -1,0 +1,186 @@
+"""Plane biaxial test of a dense specimen with rough platens: peak, softening, shear band.
+
+Scene (DESIGN §8). A specimen W × H = 1 × 2.5, confining pressure p0 on both sides (dead
+load), rough rigid platens (ux = 0 on top and bottom; the bottom is fixed, the top moves
+down by δ·t). Model tier 1 (φ(c), ψ(c) around the critical state c*), dense: c0 =
+c* + Δc (default Δc = 0.03, the parameter file's φ', ψ' give φ(c0), ψ(c0)); a small
+imperfection, a disc of radius 0.15 W at the left side, 0.3 H up, with c lowered by
+0.01, triggers the band. Triangles are unstructured (Delaunay of a jittered grid):
+a structured mesh's diagonals pull the band to their own angle (45° measured on a
+square-cell union-jack mesh). Initial stress -p0 I, p_ref = p0.
+
+Dilation lowers c, φ(c) falls toward φ*: the response peaks and softens, the
+deformation localizes. The band angle θ to the minor principal stress direction (the
+horizontal) is measured from the principal axis of the elements carrying the
+plastic shear strain of the last tenth of the push (weighted by it), and compared
+with Coulomb π/4 + φ/2, Roscoe π/4 + ψ/2 and Arthur π/4 + (φ + ψ)/4 at the peak state
+(φ = φ(c0), ψ = ψ(c0)). The headline figure is θ against the nearest end of the
+Roscoe–Coulomb range (reference = the angle itself inside the range).
+
+Softening without an internal length makes the post-peak branch mesh dependent (the
+band is as thin as the elements allow): ``--study`` runs mesh levels 1..3 and λ, 10λ,
+and reports the post-peak stress ratio at the end of the push per mesh, and the peak
+change with λ (the rigid-plastic limit).
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # this checkout's contfab
+
+import numpy as np  # noqa: E402
+
+from contfab.cases import CaseResult, Figure, main  # noqa: E402
+from contfab.fem import analysis, loads  # noqa: E402
+from contfab.fem import mesh as meshes  # noqa: E402
+from contfab.fem.assembly import Discretization  # noqa: E402
+from contfab.fem.elements import ELEMENTS  # noqa: E402
+from contfab.fem.material import TierMaterial  # noqa: E402
+from contfab.fem.solver import NewtonOptions, Solver, Stage  # noqa: E402
+from contfab.models.cone import friction_angles  # noqa: E402
+from contfab.params import ParamError, default_params, load_params  # noqa: E402
+
+DESCRIPTION = "dense biaxial specimen, rough platens: peak, softening, shear-band angle"
+
+WIDTH, HEIGHT = 1.0, 2.5
+SPOT = (0.0, 0.3 * HEIGHT, 0.15 * WIDTH, 0.01)
+"""Imperfection: centre x, y, radius, and how much lower its c is."""
+
+
+def band_angle(disc: Discretization, dgp: np.ndarray) -> float:
+    """Angle (degrees, in [0, 90]) of the dominant band to the horizontal.
+
+    A Hough transform of the plastic shear strain increment ``dgp`` (per element): for
+    each direction θ (0.5° steps) the element centres are binned across the line
+    direction in bins two elements wide; the direction whose fullest bin holds the most
+    strain is the band's. Works for one band and for crossing bands (the stronger wins).
+    """
+    centres = disc.mesh.p[:, disc.mesh.t].mean(axis=1).T
+    width = 2.0 * np.sqrt(disc.area() / disc.ne)
+    best, best_theta = -1.0, 0.0
+    for theta in np.radians(np.arange(0.0, 180.0, 0.5)):
+        normal = centres @ np.array([-np.sin(theta), np.cos(theta)])
+        bins = np.floor((normal - normal.min()) / width).astype(np.int64)
+        score = np.bincount(bins, weights=dgp).max()
+        if score > best:
+            best, best_theta = score, theta
+    angle = math.degrees(best_theta)
+    return min(angle, 180.0 - angle)
+
+
+def solve(params, element: str, level: int, dense: float, strain: float, out: Path | None,
+          progress: bool, lam: float | None = None) -> dict:
+    """One biaxial test; returns the peak, the end state, the band angle and Newton figures."""
+    if not 1 <= level <= 6:
+        raise ParamError(f"mesh level = {level} is outside the accepted range [1, 6]")
+    if not 0.0 < dense <= 0.08:
+        raise ParamError(f"dense = {dense:g} (c0 - c*) is outside the accepted range (0, 0.08]")
+    if not 0.0 < strain <= 0.2:
+        raise ParamError(f"strain = {strain:g} is outside the accepted range (0, 0.2]")
+    p0 = 1.0
+    c_star = params.tier1.c_star
+    params = params.with_tier(1).replace("regularization", p_ref=p0) \
+        .replace("initial", c0=c_star + dense)
+    if lam is not None:
+        params = params.replace("regularization", lam=lam)
+    h = WIDTH / (8 * level)
+    if ELEMENTS[element].mesh_kind == "tri":
+        mesh = meshes.delaunay_rectangle(WIDTH, HEIGHT, h)
+    else:
+        mesh = meshes.tensor(np.linspace(0, WIDTH, 8 * level + 1),
+                             np.linspace(0, HEIGHT, 20 * level + 1), kind="quad")
+    disc = Discretization(mesh, element)
+    material = TierMaterial(params, tier=1)
+    n = disc.npoints
+    state0 = material.initial_state(n)
+    x, y = disc.points.T
+    spot = np.hypot(x - SPOT[0], y - SPOT[1]) < SPOT[2]
+    state0[spot, 1] -= SPOT[3]
+    stress0 = np.column_stack((-p0 * np.ones(n), -p0 * np.ones(n), np.zeros(n)))
+    solver = Solver(disc, material, stress0, state0, NewtonOptions())
+    top = loads.boundary_dofs(disc, "top", "y")
+    fixed = np.unique(np.concatenate([loads.boundary_dofs(disc, "bottom", "x"),
+                                      loads.boundary_dofs(disc, "bottom", "y"),
+                                      loads.boundary_dofs(disc, "top", "x"), top]))
+    f_dead = loads.surface_load(disc, "left", pressure=p0) + \
+        loads.surface_load(disc, "right", pressure=p0)
+    stage = Stage("compress", fixed, np.where(np.isin(fixed, top), -strain * HEIGHT, 0.0),
+                  f_dead, dt0=0.01, dt_max=0.02, dt_min=1e-5)
+
+    def measure(s: Solver) -> dict:
+        sigma1 = -s.reactions(top) / WIDTH
+        return {"axial_strain": float(-s.committed.u[top].mean() / HEIGHT),
+                "stress_ratio": sigma1 / p0,
+                "sin_phi_mob": (sigma1 - p0) / (sigma1 + p0)}
+
+    name = f"biaxial_shear_band_{element}_L{level}"
+    outputs = analysis.Outputs(out, name, frame_every=10, curve_axes=("axial_strain", "stress_ratio"))
+    gp_marks = []
+    t0 = time.perf_counter()
+    result = analysis.run(solver, [stage], _recording(measure, gp_marks), outputs,
+                          progress=progress)
+    ratio = result.column("stress_ratio")
+    t = result.column("t")
+    gp = [g for tt, g in gp_marks if tt >= 0.9 * t[-1]]
+    dgp = disc.element_mean(solver.committed.state[:, 0] - gp[0])
+    c0 = c_star + dense
+    phi, psi, _, _ = friction_angles(c0, *(params.array(1)[2:]))
+    return {"peak": float(ratio.max()), "peak_strain": float(result.column("axial_strain")[np.argmax(ratio)]),
+            "end": float(ratio[-1]), "angle": band_angle(disc, dgp),
+            "phi0": math.degrees(phi), "psi0": math.degrees(psi), "dofs": disc.ndofs,
+            "wall_s": time.perf_counter() - t0, "steps": len(result.iterations),
+            "median_newton": float(np.median(result.iterations)),
+            "band_c_min": float(solver.committed.state[:, 1].min()), "files": result.files}
+
+
+def _recording(measure, marks):
+    """``measure`` that also keeps (t, gp) of each step, for the band's strain increment."""
+    def wrapped(s: Solver) -> dict:
+        marks.append((s.committed.t, s.committed.state[:, 0]))
+        return measure(s)
+    return wrapped
+
+
+def add_arguments(p) -> None:
+    p.add_argument("--element", choices=sorted(ELEMENTS), default="P2",
+                   help="element family (default P2: the element study's choice)")
+    p.add_argument("--level", type=int, default=2, help="mesh density level, 1..6")
+    p.add_argument("--dense", type=float, default=0.03, help="c0 - c* (default 0.03)")
+    p.add_argument("--strain", type=float, default=0.04, help="final axial strain (default 0.04)")
+    p.add_argument("--params", default=None, help="parameter file (default: the shipped one)")
+    p.add_argument("--study", action="store_true",
+                   help="also mesh levels 1..3 (post-peak mesh dependence) and 10 lambda")
+
+
+def run(args) -> CaseResult:
+    params = default_params() if args.params is None else load_params(args.params)
+    if args.fast:   # the test-suite preset: P2 on the level-1 mesh
+        args.element, args.level = "P2", 1
+    r = solve(params, args.element, args.level, args.dense, args.strain, args.out, not args.quiet)
+    coulomb = 45 + r["phi0"] / 2
+    roscoe = 45 + r["psi0"] / 2
+    arthur = 45 + (r["phi0"] + r["psi0"]) / 4
+    nearest = min(max(r["angle"], roscoe), coulomb)
+    figures = [Figure("band angle to the horizontal [deg] vs the Roscoe-Coulomb range",
+                      r["angle"], nearest, f"Roscoe {roscoe:.1f}, Coulomb {coulomb:.1f}"),
+               Figure("band angle vs Arthur [deg]", r["angle"], arthur, "Arthur")]
+    notes = {k: r[k] for k in ("peak", "peak_strain", "end", "phi0", "psi0", "band_c_min",
+                               "dofs", "wall_s", "steps", "median_newton")}
+    notes["softening"] = r["end"] / r["peak"] - 1.0
+    if args.study:
+        lam = params.regularization.lam
+        stiff = solve(params, args.element, args.level, args.dense, args.strain, None, False,
+                      lam=10 * lam)
+        notes["peak_change_10x_lambda"] = stiff["peak"] / r["peak"] - 1.0
+        for level in (1, 2, 3):
+            m = r if level == args.level else solve(params, args.element, level, args.dense,
+                                                    args.strain, None, False)
+            notes[f"level{level}"] = {k: m[k] for k in ("dofs", "peak", "end", "angle")}
+    return CaseResult(figures, notes, r["files"])
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.modules[__name__]))

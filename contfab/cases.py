@@ -1,0 +1,156 @@
+"""The boundary-value cases of ``cases/``: discovery, common options and the error report.
+
+A case is a script ``cases/NAME.py`` exposing ``DESCRIPTION``, ``add_arguments(parser)``
+and ``run(args) -> CaseResult``; it ends with
+``if __name__ == "__main__": raise SystemExit(main(sys.modules[__name__]))`` so it runs
+as ``python cases/NAME.py`` and as ``contfab case NAME``. Common options:
+``--fast`` (the test-suite preset), ``--json`` (print one JSON object: the headline
+figure's reference, computed value and relative error, and every figure), ``--out``
+(output directory), ``--quiet`` (no progress bars).
+"""
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+CASES_DIR = Path(__file__).resolve().parent.parent / "cases"
+
+
+@dataclass
+class Figure:
+    """A computed number against its reference: relative error = computed/reference - 1."""
+
+    name: str
+    computed: float
+    reference: float
+    source: str
+
+    @property
+    def relative_error(self) -> float:
+        return self.computed / self.reference - 1.0
+
+    def as_dict(self) -> dict:
+        return {"name": self.name, "reference": self.reference, "computed": self.computed,
+                "relative_error": self.relative_error, "source": self.source}
+
+
+@dataclass
+class CaseResult:
+    """What a case reports: figures (the first is the headline), notes, written files."""
+
+    figures: list[Figure]
+    notes: dict = field(default_factory=dict)
+    files: list[Path] = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        head = self.figures[0]
+        return {"reference": head.reference, "computed": head.computed,
+                "relative_error": head.relative_error, "figure": head.name,
+                "figures": [f.as_dict() for f in self.figures], **self.notes,
+                "files": [str(f) for f in self.files]}
+
+
+def case_names() -> list[str]:
+    """Names of the case scripts in ``cases/``."""
+    return sorted(p.stem for p in CASES_DIR.glob("*.py") if not p.stem.startswith("_"))
+
+
+def load_case(name: str):
+    """Import ``cases/NAME.py`` as a module (a ValueError listing the cases if unknown)."""
+    path = CASES_DIR / f"{name}.py"
+    if not path.is_file():
+        raise ValueError(f"unknown case {name!r}; available: {', '.join(case_names())}")
+    spec = importlib.util.spec_from_file_location(f"contfab_case_{name}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def build_parser(module, prog: str) -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog=prog, description=module.DESCRIPTION)
+    parser.add_argument("--fast", action="store_true", help="the quick preset used by the test suite")
+    parser.add_argument("--json", action="store_true",
+                        help="print one JSON object {reference, computed, relative_error, ...}")
+    parser.add_argument("--out", default=None,
+                        help="output directory (default runs/NAME; 'none' writes nothing)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    module.add_arguments(parser)
+    return parser
+
+
+def run_case(name: str, argv: list[str] | None = None) -> CaseResult:
+    """Parse ``argv`` for case ``name`` and run it (what the tests call)."""
+    module = load_case(name)
+    args = build_parser(module, f"contfab case {name}").parse_args(argv or [])
+    _resolve_out(args, name)
+    return module.run(args)
+
+
+def _resolve_out(args, name: str) -> None:
+    if args.out is None:
+        args.out = Path("runs") / name
+    elif str(args.out).lower() == "none":
+        args.out = None
+    else:
+        args.out = Path(args.out)
+
+
+def print_result(result: CaseResult, as_json: bool) -> None:
+    """One JSON object, or a line per figure with its reference, its source and its error."""
+    if as_json:
+        print(json.dumps(_finite(result.as_dict()), default=_plain, allow_nan=False))
+        return
+    for f in result.figures:
+        print(f"{f.name}: computed {f.computed:.4g}, reference {f.reference:.4g} ({f.source}), "
+              f"error {100 * f.relative_error:+.2f}%")
+    for k, v in result.notes.items():
+        print(f"  {k}: {_fmt(v)}")
+    if result.files:
+        print(f"wrote {len(result.files)} files to {Path(result.files[0]).parent}: "
+              + ", ".join(sorted({Path(f).name for f in result.files if not str(f).endswith('.vtu')})))
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return str(v)
+
+
+def _finite(obj):
+    """NaN and inf become null (strict JSON), recursively; numpy scalars become floats."""
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    if hasattr(obj, "item") and getattr(obj, "ndim", 1) == 0:
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+def _plain(obj):
+    if hasattr(obj, "tolist"):
+        return obj.tolist()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"not JSON serializable: {type(obj).__name__}")
+
+
+def main(module, argv: list[str] | None = None, prog: str | None = None) -> int:
+    """Run a case module from the command line: parse, run, print; exit 2 on a clear input error."""
+    name = Path(module.__file__).stem
+    args = build_parser(module, prog or f"python cases/{name}.py").parse_args(argv)
+    _resolve_out(args, name)
+    try:
+        result = module.run(args)
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"{name}: error: {exc}", file=sys.stderr)
+        return 2
+    print_result(result, args.json)
+    return 0

@@ -1,0 +1,121 @@
+"""Run a boundary-value problem's stages with a progress bar and write its outputs.
+
+Outputs in ``outdir`` (each written atomically, :mod:`contfab.fem.output`):
+``NAME.pvd`` + ``NAME_####.vtu`` (the field series), ``NAME_curve.csv`` (one row
+per converged step: stage, t, Newton iterations, step cuts, and the case's measured
+quantities), ``NAME_curve.png`` and ``NAME_plastic_zone.png`` (the increment of
+plastic shear strain over the last steps: the active mechanism). When Newton
+fails below the minimum step, the last converged state is written as a frame, the
+curve so far is saved, ``NAME_failure.json`` holds the report, and the
+:class:`~contfab.fem.solver.ConvergenceError` is re-raised with the paths added.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+from tqdm import tqdm
+
+from contfab.fem.output import VtuSeries, plot_curve, plot_field
+from contfab.fem.solver import ConvergenceError, Solver, Stage
+from dem.fileio import write_csv, write_json
+
+
+@dataclass
+class Outputs:
+    """Where and what to write: ``frames`` every k-th step (0: first/last only), plots."""
+
+    outdir: str | os.PathLike | None
+    name: str
+    frame_every: int = 0
+    curve_axes: tuple[str, str] | None = None       # (x column, y column) for the PNG
+    reference: float | None = None                    # horizontal line on the curve plot
+    reference_label: str = "reference"
+    window: tuple[float, float, float, float] | None = None  # plastic-zone plot extent
+
+
+@dataclass
+class RunResult:
+    """The curve rows, the written files and the Newton records of a run."""
+
+    columns: list[str]
+    rows: list[list]
+    files: list[Path] = field(default_factory=list)
+    iterations: list[int] = field(default_factory=list)
+
+    def column(self, name: str) -> np.ndarray:
+        j = self.columns.index(name)
+        return np.array([row[j] for row in self.rows], dtype=float)
+
+
+def run(solver: Solver, stages: Sequence[Stage], measure: Callable[[Solver], dict],
+        outputs: Outputs, progress: bool = True, record_stages: Sequence[str] | None = None
+        ) -> RunResult:
+    """Run ``stages`` in order; after each step record ``measure(solver)`` (a dict of floats).
+
+    Only steps of ``record_stages`` (default: all) enter the curve. Frames are
+    written every ``outputs.frame_every`` recorded steps and at the end.
+    """
+    record_stages = [s.name for s in stages] if record_stages is None else list(record_stages)
+    first = measure(solver)
+    result = RunResult(["stage", "t", "iterations", "cuts", *first], [])
+    series = None
+    if outputs.outdir is not None:
+        series = VtuSeries(outputs.outdir, outputs.name, solver.disc, solver.material.state_names)
+    gp_col = solver.material.state_names.index("gp")
+    gp_last = solver.committed.state[:, gp_col]
+    gp_before = gp_last
+    try:
+        for stage in stages:
+            bar = tqdm(total=1.0, desc=f"{outputs.name}: {stage.name}", disable=not progress,
+                       bar_format="{desc} {percentage:3.0f}%|{bar}| {elapsed}<{remaining}{postfix}",
+                       leave=False)
+            with bar:
+                for rec in solver.run_stage(stage):
+                    gp_before, gp_last = gp_last, solver.committed.state[:, gp_col]
+                    bar.update(rec.dt)
+                    bar.set_postfix_str(f"t={rec.t:.3f} newton={rec.iterations} cuts={rec.cuts}")
+                    if stage.name not in record_stages:
+                        continue
+                    result.rows.append([stage.name, rec.t, rec.iterations, rec.cuts,
+                                        *measure(solver).values()])
+                    result.iterations.append(rec.iterations)
+                    step = len(result.rows)
+                    if series is not None and outputs.frame_every and step % outputs.frame_every == 0:
+                        series.write(solver.committed, step)
+    except ConvergenceError as exc:
+        if outputs.outdir is not None:
+            result.files += _write(solver, series, result, outputs, gp_before)
+            report = Path(outputs.outdir) / f"{outputs.name}_failure.json"
+            write_json(report, {"message": str(exc), "last_converged_t": exc.last.t,
+                                "last_converged_stage": exc.last.stage, "attempts": exc.attempts})
+            result.files.append(report)
+            raise ConvergenceError(f"{exc}\nlast converged state and curve written to "
+                                   f"{outputs.outdir} (report {report.name})",
+                                   exc.last, exc.attempts) from None
+        raise
+    if outputs.outdir is not None:
+        result.files += _write(solver, series, result, outputs, gp_before)
+    return result
+
+
+def _write(solver: Solver, series, result: RunResult, outputs: Outputs, gp_before) -> list[Path]:
+    """The final frame, the curve CSV and the two PNGs."""
+    out = Path(outputs.outdir)
+    files = [series.write(solver.committed, len(result.rows)), series.pvd]
+    files.append(write_csv(out / f"{outputs.name}_curve.csv", result.columns, result.rows))
+    if outputs.curve_axes is not None and result.rows:
+        x, y = outputs.curve_axes
+        files.append(plot_curve(out / f"{outputs.name}_curve.png", result.column(x),
+                                result.column(y), x, y, outputs.name, outputs.reference,
+                                outputs.reference_label))
+    disc = solver.disc
+    gp = solver.committed.state[:, solver.material.state_names.index("gp")]
+    files.append(plot_field(out / f"{outputs.name}_plastic_zone.png", disc,
+                            disc.element_mean(gp - gp_before),
+                            "plastic shear strain increment",
+                            f"{outputs.name}: plastic zone (last steps)", outputs.window))
+    return files

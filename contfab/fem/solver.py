@@ -1,0 +1,340 @@
+"""Full Newton with the consistent tangent, automatic step cutting and growth.
+
+Equilibrium in residual form, tension-positive stress (DESIGN §2):
+
+    r(u) = f_int(σ(u)) - f_ext(t) = 0   on the free DOFs,
+    u = ū(t)                            on the constrained DOFs,
+
+where σ(u) is the constitutive update from the last *committed* state over the
+strain increment B(u - u_n) and spin increment W(u - u_n). On the constrained DOFs
+r is the reaction: the force the supports exert on the body. Each Newton
+iteration runs the update once over all quadrature points, assembles
+K = Σ w Bᵀ(D B + g W) from its algorithmic tangent D = ∂σ/∂e (non-symmetric when
+ψ ≠ φ) and the spin tangent g = ∂σ/∂ω, and solves K_ff δu_f = -r_f - K_fc δū_c.
+The update contract's tangent leaves out g (the objective rotation of the stress by
+the spin); without it Newton converges only linearly once the mechanism rotates
+(measured on the footing: residual ÷5 per iteration instead of squaring), so g is
+taken by a forward difference in ω, one extra update call per iteration
+(``NewtonOptions.spin_step``; 0 turns it off).
+
+A stage drives a parameter t from 0 to 1: prescribed displacements
+ū(t) = ū_start + t Δū on its constrained DOFs (displacement control) and external
+force f_ext(t) = f_dead + t f_ramp (load control). Steps grow after easy
+convergence and are cut after a failure (too many iterations, a diverging or
+non-finite residual, a singular tangent, a failed constitutive update); a failed
+trial leaves no trace in the committed state. Below the minimum step the stage
+ends with :class:`ConvergenceError`, which carries the last converged state.
+
+Convergence is scale-free: |r_f| ≤ tol · max(|f_ext|, |r_c|) (Euclidean norms),
+the residual on free DOFs against the applied and reaction forces.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Iterator, Protocol
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from contfab.fem.assembly import Discretization
+
+
+class ConvergenceError(ValueError):
+    """Newton failed below the minimum step; ``last`` is the last converged state."""
+
+    def __init__(self, message: str, last: "FieldState", attempts: list):
+        super().__init__(message)
+        self.last = last
+        self.attempts = attempts
+
+
+class Material(Protocol):
+    """What the solver needs from a constitutive model (the update contract)."""
+
+    state_names: tuple[str, ...]
+
+    def update(self, stress_n, state_n, dstrain, dspin):
+        """-> object with ``stress`` (n,3), ``state`` (n,k), ``tangent`` (n,3,3), ``status`` (n,)."""
+
+
+@dataclass
+class FieldState:
+    """A complete solution: displacement, per-point stress/state/tangent/status, residual.
+
+    ``t`` is the stage parameter and ``stage`` the stage's name; ``residual`` is
+    r = f_int - f_ext (reactions on constrained DOFs, ≈ 0 elsewhere).
+    """
+
+    stage: str
+    t: float
+    u: np.ndarray
+    stress: np.ndarray
+    state: np.ndarray
+    tangent: np.ndarray
+    spin_tangent: np.ndarray
+    status: np.ndarray
+    residual: np.ndarray
+
+
+@dataclass(frozen=True)
+class Stage:
+    """A load stage: constrained DOFs, their displacement increment, external forces, steps.
+
+    ``fixed_dofs`` lists every constrained DOF (supports and driven DOFs alike);
+    ``increment`` is their prescribed displacement change over the stage (zeros for
+    supports). ``reset_displacement`` zeroes u after the stage but keeps stress and
+    state (a geostatic stage: the initial stress is in equilibrium, settlements
+    count from there).
+    """
+
+    name: str
+    fixed_dofs: np.ndarray
+    increment: np.ndarray
+    f_dead: np.ndarray
+    f_ramp: np.ndarray | None = None
+    dt0: float = 0.05
+    dt_min: float = 1e-4
+    dt_max: float = 0.1
+    reset_displacement: bool = False
+
+    def __post_init__(self):
+        if len(self.fixed_dofs) != len(self.increment):
+            raise ValueError(f"stage {self.name!r}: {len(self.fixed_dofs)} constrained DOFs but "
+                             f"{len(self.increment)} prescribed increments")
+        if len(np.unique(self.fixed_dofs)) != len(self.fixed_dofs):
+            raise ValueError(f"stage {self.name!r}: a DOF is constrained twice")
+        if not 0 < self.dt_min <= self.dt0 <= 1 or not self.dt0 <= self.dt_max <= 1:
+            raise ValueError(f"stage {self.name!r}: need 0 < dt_min <= dt0 <= dt_max <= 1, "
+                             f"got dt_min={self.dt_min}, dt0={self.dt0}, dt_max={self.dt_max}")
+
+
+@dataclass(frozen=True)
+class NewtonOptions:
+    """Newton tolerances, step control and line search.
+
+    A step is converged when the relative free residual is <= ``tol``, or <= ``tol_stall``
+    once it stops decreasing (halved in none of the last three iterations) or at the
+    last iteration: at a softening peak, points flipping between elastic unloading and
+    plastic loading made Newton cycle at ~5e-6 forever (biaxial case). Records keep the
+    residual sequence, so such steps are visible (:attr:`StepRecord.stalled`).
+    A step grows by ``grow`` after <= ``easy_iter`` iterations and is cut by ``cut`` on
+    failure. ``line_search`` halvings of a correction are tried when it does not reduce
+    the free residual (apex/face switching made plain Newton cycle on the N_γ footing);
+    ``spin_step`` is the difference step of the spin tangent (0: off).
+    """
+
+    tol: float = 1e-8
+    tol_stall: float = 1e-4
+    max_iter: int = 15
+    grow: float = 1.5
+    cut: float = 0.25
+    easy_iter: int = 8
+    diverge: float = 1e6
+    spin_step: float = 1e-7
+    line_search: int = 4
+
+    def __post_init__(self):
+        if not 0 < self.tol <= self.tol_stall < 1:
+            raise ValueError(f"need 0 < tol <= tol_stall < 1, got tol = {self.tol}, "
+                             f"tol_stall = {self.tol_stall}")
+        if self.max_iter < 1:
+            raise ValueError(f"max_iter = {self.max_iter} must be >= 1")
+        if not self.grow >= 1 or not 0 < self.cut < 1:
+            raise ValueError(f"need grow >= 1 and 0 < cut < 1, got {self.grow}, {self.cut}")
+        if self.line_search < 0:
+            raise ValueError(f"line_search = {self.line_search} must be >= 0")
+        if not 0 <= self.spin_step < 1e-3:
+            raise ValueError(f"spin_step = {self.spin_step} must lie in [0, 1e-3)")
+
+
+@dataclass
+class StepRecord:
+    """One committed step: stage, t, dt, relative residuals per iteration, failed attempts."""
+
+    stage: str
+    t: float
+    dt: float
+    residuals: list[float]
+    cuts: int = 0
+
+    tol: float = 1e-8
+
+    @property
+    def iterations(self) -> int:
+        return len(self.residuals)
+
+    @property
+    def stalled(self) -> bool:
+        """Accepted at the stall tolerance, not the Newton tolerance."""
+        return self.residuals[-1] > self.tol
+
+
+class ConstrainedSystem:
+    """Solves K δu = -r with δu prescribed on constrained DOFs, reusing the CSR pattern.
+
+    SuperLU with the minimum-degree ordering of Kᵀ + K (the FE matrix is structurally
+    symmetric): 3-5x faster than the default COLAMD here (0.23 s vs 1.0 s at 54k DOFs).
+    """
+
+    def __init__(self, disc: Discretization, fixed: np.ndarray):
+        n = disc.ndofs
+        self.fixed = np.asarray(fixed, dtype=np.int64)
+        self.free = np.setdiff1d(np.arange(n), self.fixed)
+        probe = sp.csr_matrix((np.arange(1.0, len(disc.indices) + 1), disc.indices, disc.indptr),
+                              shape=(n, n))
+        kff = probe[self.free][:, self.free].tocsc()
+        kfc = probe[self.free][:, self.fixed].tocsr()
+        self._ff = (kff.data.astype(np.int64) - 1, kff.indices, kff.indptr, kff.shape)
+        self._fc = (kfc.data.astype(np.int64) - 1, kfc.indices, kfc.indptr, kfc.shape)
+
+    def solve(self, k: sp.csr_matrix, r: np.ndarray, du_fixed: np.ndarray) -> np.ndarray:
+        """Full δu with δu_c = ``du_fixed`` and K_ff δu_f = -r_f - K_fc δu_c (SuperLU)."""
+        sel, ind, ptr, shape = self._ff
+        kff = sp.csc_matrix((k.data[sel], ind, ptr), shape=shape)
+        sel, ind, ptr, shape = self._fc
+        kfc = sp.csr_matrix((k.data[sel], ind, ptr), shape=shape)
+        du = np.zeros(len(r))
+        du[self.fixed] = du_fixed
+        lu = spla.splu(kff, permc_spec="MMD_AT_PLUS_A")
+        du[self.free] = lu.solve(-r[self.free] - kfc @ du_fixed)
+        return du
+
+
+def norm(x: np.ndarray) -> float:
+    """Euclidean norm without BLAS: a threaded OpenBLAS dot on a loaded 2-core machine
+    took 12 ms for 54k entries (vs 8 µs single-threaded), more than an assembly."""
+    return float(np.sqrt(np.sum(x * x)))
+
+
+class Solver:
+    """Newton–Raphson over stages; ``committed`` is the last converged :class:`FieldState`."""
+
+    def __init__(self, disc: Discretization, material: Material, stress0: np.ndarray,
+                 state0: np.ndarray, options: NewtonOptions = NewtonOptions()):
+        n, k = disc.npoints, len(material.state_names)
+        stress0 = np.ascontiguousarray(stress0, dtype=float)
+        state0 = np.ascontiguousarray(state0, dtype=float)
+        if stress0.shape != (n, 3) or state0.shape != (n, k):
+            raise ValueError(f"initial stress/state must have shapes {(n, 3)}/{(n, k)}, "
+                             f"got {stress0.shape}/{state0.shape}")
+        if not (np.all(np.isfinite(stress0)) and np.all(np.isfinite(state0))):
+            raise ValueError("initial stress or state holds NaN or inf")
+        self.disc = disc
+        self.material = material
+        self.options = options
+        zero = np.zeros((n, 3))
+        res = material.update(stress0, state0, zero, np.zeros(n))
+        if np.any(res.status < 0):
+            raise ValueError(f"the initial stress is not admissible at "
+                             f"{int(np.sum(res.status < 0))} of {n} points")
+        self.committed = FieldState("initial", 0.0, np.zeros(disc.ndofs), stress0, state0,
+                                    np.ascontiguousarray(res.tangent),
+                                    self._spin_tangent(stress0, state0, zero, np.zeros(n), res),
+                                    res.status, disc.internal_force(stress0))
+        self.records: list[StepRecord] = []
+
+    def run_stage(self, stage: Stage) -> Iterator[StepRecord]:
+        """Advance ``stage`` from t = 0 to 1, yielding a record after each committed step."""
+        system = ConstrainedSystem(self.disc, stage.fixed_dofs)
+        u_start = self.committed.u[system.fixed].copy()
+        t, dt, attempts = 0.0, stage.dt0, []
+        while t < 1.0 - 1e-12:
+            dt = min(dt, 1.0 - t)
+            trial, residuals, reason = self._newton(stage, system, u_start, t + dt)
+            if trial is None:
+                attempts.append({"t": t + dt, "dt": dt, "reason": reason, "residuals": residuals})
+                if dt <= stage.dt_min * (1 + 1e-9):
+                    raise ConvergenceError(self._failure_message(stage, attempts), self.committed,
+                                           attempts)
+                dt = max(dt * self.options.cut, stage.dt_min)
+                continue
+            self.committed = trial
+            t += dt
+            record = StepRecord(stage.name, t, dt, residuals, cuts=len(attempts),
+                                tol=self.options.tol)
+            self.records.append(record)
+            attempts = []
+            yield record
+            if record.iterations <= self.options.easy_iter:
+                dt = min(dt * self.options.grow, stage.dt_max)
+        if stage.reset_displacement:
+            self.committed = replace(self.committed, u=np.zeros_like(self.committed.u))
+
+    def _newton(self, stage: Stage, system: ConstrainedSystem, u_start: np.ndarray, t: float):
+        """One step to stage parameter ``t``: (trial state or None, residual history, reason)."""
+        c, opt, disc = self.committed, self.options, self.disc
+        f_ext = stage.f_dead if stage.f_ramp is None else stage.f_dead + t * stage.f_ramp
+        target = u_start + t * stage.increment
+        u = c.u.copy()
+        r = disc.internal_force(c.stress) - f_ext
+        tangent, spin_tangent = c.tangent, c.spin_tangent
+        residuals: list[float] = []
+        current = None
+        for it in range(opt.max_iter):
+            try:
+                du = system.solve(disc.tangent(tangent, spin_tangent), r,
+                                  target - u[system.fixed])
+            except RuntimeError as exc:  # SuperLU: "Factor is exactly singular"
+                return None, residuals, f"singular tangent ({exc}): a mechanism is free to move"
+            if not np.all(np.isfinite(du)):
+                return None, residuals, "non-finite Newton correction"
+            trial = self._line_search(c, system, f_ext, u, du, current)
+            if trial is None:
+                return None, residuals, "constitutive update failed (status -1) along the step"
+            u, current = trial[0], trial[1:]
+            res, r, dstrain, dspin, _, rel = current
+            residuals.append(rel)
+            if not np.isfinite(rel) or rel > opt.diverge:
+                return None, residuals, f"residual diverged ({rel:.3g})"
+            tangent = res.tangent
+            spin_tangent = self._spin_tangent(c.stress, c.state, dstrain, dspin, res)
+            stalled = len(residuals) > 3 and rel > 0.5 * min(residuals[-4:-1])
+            if rel <= opt.tol or (rel <= opt.tol_stall and (stalled or it == opt.max_iter - 1)):
+                return FieldState(stage.name, t, u, res.stress, res.state, tangent,
+                                  spin_tangent, res.status, r), residuals, ""
+        return None, residuals, f"no convergence in {opt.max_iter} iterations"
+
+    def _line_search(self, c: FieldState, system: ConstrainedSystem, f_ext, u, du, current):
+        """u + α du, α = 1, 1/2, ... (``line_search`` halvings) until |r_f| decreases.
+
+        The first correction of a step (``current`` None) carries the prescribed
+        displacement increment and is taken whole. Returns (u, update result, r,
+        strain, spin, |r_f|, relative residual), or None if the update fails at every α.
+        """
+        alpha, best = 1.0, None
+        for _ in range(self.options.line_search + 1):
+            u_try = u + alpha * du
+            dstrain, dspin = self.disc.strain(u_try - c.u)
+            res = self.material.update(c.stress, c.state, dstrain, dspin)
+            if not np.any(res.status < 0):
+                r = self.disc.internal_force(res.stress) - f_ext
+                free = norm(r[system.free])
+                rel = free / (max(norm(f_ext), norm(r[system.fixed])) or 1.0)
+                if best is None or not free >= best[5]:
+                    best = (u_try, res, r, dstrain, dspin, free, rel)
+                if current is None or not free >= current[4]:
+                    return best
+            if current is None:
+                return best
+            alpha *= 0.5
+        return best
+
+    def _spin_tangent(self, stress_n, state_n, dstrain, dspin, res) -> np.ndarray:
+        """g = ∂σ/∂ω by a forward difference of the update (zeros when spin_step = 0)."""
+        h = self.options.spin_step
+        if h == 0:
+            return np.zeros_like(res.stress)
+        shifted = self.material.update(stress_n, state_n, dstrain, dspin + h)
+        return (shifted.stress - res.stress) / h
+
+    def _failure_message(self, stage: Stage, attempts: list) -> str:
+        last = attempts[-1]
+        seq = ", ".join(f"{x:.2e}" for x in last["residuals"]) or "none"
+        return (f"stage {stage.name!r}: no converged step beyond t = {self.committed.t:.6g} "
+                f"(step cut {len(attempts)} times down to the minimum "
+                f"dt = {stage.dt_min:g}); last attempt: {last['reason']}; relative residuals [{seq}]")
+
+    def reactions(self, dofs: np.ndarray) -> float:
+        """Sum of the committed residual over ``dofs``: the support force on the body."""
+        return float(np.sum(self.committed.residual[dofs]))

@@ -1,0 +1,70 @@
+"""The boundary-value cases at their --fast presets: headline numbers with tolerances."""
+import json
+import math
+
+import pytest
+
+from contfab.cases import run_case
+from contfab.cli import main
+
+
+def test_strip_footing_nq_fast_within_4_percent_and_json(tmp_path, capsys):
+    """N_q (φ = 22°, associated, P2 level 1: +2.2 % measured) against Prandtl-Reissner."""
+    code = main(["case", "strip_footing", "--fast", "--json", "--quiet", "--out", str(tmp_path)])
+    assert code == 0
+    out = json.loads(capsys.readouterr().out)
+    reference = math.exp(math.pi * math.tan(math.radians(22))) * math.tan(math.radians(56)) ** 2
+    assert out["reference"] == pytest.approx(reference, rel=1e-12)
+    assert 0 < out["relative_error"] < 0.04            # displacement FE: from above
+    assert out["computed"] == pytest.approx(reference * (1 + out["relative_error"]))
+    names = {p.name for p in tmp_path.iterdir()}
+    assert {"strip_footing_Nq_phi22_psi22.pvd", "strip_footing_Nq_phi22_psi22_curve.csv",
+            "strip_footing_Nq_phi22_psi22_plastic_zone.png"} <= names
+    note = out["N_q(phi=22, psi=22)"]
+    assert abs(note["plateau_drift"]) < 1e-3 and note["median_newton"] < 8
+
+
+def test_newton_converges_quadratically_on_the_collapse_plateau():
+    """The last step of the footing push (at collapse): the error order of the last
+    three residuals is >= 1.5 (2 for Newton), ending below the 1e-8 tolerance."""
+    result = run_case("strip_footing", ["--fast", "--quiet", "--out", "none"])
+    r = result.notes["N_q(phi=22, psi=22)"]["last_step_residuals"]
+    assert r[-1] <= 1e-8 and len(r) >= 3
+    order = math.log(r[-1] / r[-2]) / math.log(r[-2] / r[-3])
+    assert order >= 1.5, r
+
+
+def test_retaining_wall_fast_within_3_percent_of_rankine():
+    result = run_case("retaining_wall", ["--fast", "--quiet", "--out", "none"])
+    errors = {f.name: f.relative_error for f in result.figures}
+    assert set(errors) == {"K_a(phi=22)", "K_p(phi=22)"}
+    assert all(abs(e) < 0.03 for e in errors.values()), errors
+    assert errors["K_a(phi=22)"] < 0 < errors["K_p(phi=22)"]    # stiff FE: K_a low, K_p high
+
+
+def test_biaxial_band_angle_within_5_degrees_of_roscoe_coulomb_and_softening():
+    result = run_case("biaxial_shear_band", ["--fast", "--quiet", "--out", "none"])
+    head = result.figures[0]
+    assert abs(head.computed - head.reference) <= 5.0, head
+    assert result.notes["softening"] < -0.05          # the end load is > 5 % below the peak
+    # the peak sits at φ(c0): σ1/σ3 = (1 + sin φ)/(1 - sin φ) to 2 %
+    s = math.sin(math.radians(result.notes["phi0"]))
+    assert result.notes["peak"] == pytest.approx((1 + s) / (1 - s), rel=0.02)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["case", "strip_footing", "--level", "99", "--out", "none"], "mesh level = 99 is outside"),
+    (["case", "retaining_wall", "--phi", "95", "--out", "none"], "phi_deg = 95 is outside"),
+    (["case", "biaxial_shear_band", "--dense", "0.5", "--out", "none"], "dense = 0.5"),
+    (["case", "no_such_case"], "unknown case 'no_such_case'"),
+])
+def test_bad_case_input_is_a_clean_error(argv, message, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+
+
+def test_case_listing(capsys):
+    assert main(["case"]) == 0
+    out = capsys.readouterr().out
+    assert all(n in out for n in ("strip_footing", "retaining_wall", "biaxial_shear_band"))

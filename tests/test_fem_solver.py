@@ -1,0 +1,108 @@
+"""Newton step control, failure reports and the written outputs (linear material)."""
+import xml.etree.ElementTree as ET
+
+import meshio
+import numpy as np
+import pytest
+
+from contfab.fem import analysis
+from contfab.fem import loads as L
+from contfab.fem import mesh as M
+from contfab.fem.assembly import Discretization
+from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver, Stage
+from fem_helpers import Brittle, Elastic
+
+
+def _compression(material, dt0=0.05, dt_min=1e-3):
+    """A 2x1 block on rollers, top pushed down by 1 % (uniaxial strain eyy = -0.01 · t)."""
+    mesh = M.tensor(np.linspace(0, 2, 5), np.linspace(0, 1, 3))
+    disc = Discretization(mesh, "P2")
+    top = L.boundary_dofs(disc, "top", "y")
+    fixed = np.concatenate([L.boundary_dofs(disc, "bottom", "y"), L.boundary_dofs(disc, "left", "x"), top])
+    inc = np.where(np.isin(fixed, top), -0.01, 0.0)
+    stage = Stage("push", fixed, inc, np.zeros(disc.ndofs), dt0=dt0, dt_min=dt_min, dt_max=0.2)
+    n = disc.npoints
+    return disc, Solver(disc, material, np.zeros((n, 3)), np.zeros((n, 1))), stage, top
+
+
+def test_steps_grow_after_easy_convergence():
+    disc, solver, stage, top = _compression(Elastic())
+    records = list(solver.run_stage(stage))
+    dts = [r.dt for r in records]
+    assert dts[0] == pytest.approx(0.05) and max(dts) == pytest.approx(0.2)
+    assert sum(dts) == pytest.approx(1.0) and records[-1].t == pytest.approx(1.0)
+    # uniaxial strain: σyy = (K + G - (K - G)²/(K + G)) εyy = 8/3 εyy per unit width
+    assert solver.reactions(top) == pytest.approx(-0.01 * 8 / 3 * 2, rel=1e-10)
+
+
+def test_failed_step_is_cut_and_leaves_no_trace():
+    # the top strain is -0.01 t, so points break beyond t = 0.6
+    disc, solver, stage, _ = _compression(Brittle(limit=0.006))
+    with pytest.raises(ConvergenceError) as info:
+        list(solver.run_stage(stage))
+    err = info.value
+    last = solver.committed
+    assert err.last is last and 0.6 - 1e-3 <= last.t <= 0.6     # within dt_min of the break
+    assert f"no converged step beyond t = {last.t:.6g}" in str(err)
+    assert "constitutive update failed" in str(err) and "minimum dt = 0.001" in str(err)
+    strain, _ = disc.strain(last.u)                    # committed stress matches committed u
+    assert np.allclose(last.stress, strain @ Elastic().d.T, atol=1e-14)
+    assert np.abs(strain).max() <= 0.006
+
+
+def test_bad_stage_and_options_are_clear_errors():
+    with pytest.raises(ValueError, match="dt_min <= dt0"):
+        Stage("s", np.array([0]), np.array([0.0]), np.zeros(2), dt0=0.5, dt_min=0.6)
+    with pytest.raises(ValueError, match="2 prescribed increments"):
+        Stage("s", np.array([0]), np.array([0.0, 1.0]), np.zeros(2))
+    with pytest.raises(ValueError, match=r"need 0 < tol <= tol_stall < 1, got tol = 2"):
+        NewtonOptions(tol=2)
+
+
+def test_failure_writes_last_state_and_report_and_no_partial_file(tmp_path):
+    disc, solver, stage, top = _compression(Brittle(limit=0.006))
+    out = analysis.Outputs(tmp_path, "block", frame_every=4, curve_axes=("t", "force"))
+    with pytest.raises(ConvergenceError, match="last converged state and curve written"):
+        analysis.run(solver, [stage], lambda s: {"force": -s.reactions(top)}, out, progress=False)
+    names = sorted(p.name for p in tmp_path.iterdir())
+    assert not [n for n in names if ".tmp" in n]
+    assert {"block.pvd", "block_curve.csv", "block_failure.json", "block_curve.png",
+            "block_plastic_zone.png"} <= set(names)
+    frames = [d.get("file") for d in ET.parse(tmp_path / "block.pvd").getroot().iter("DataSet")]
+    assert frames and all((tmp_path / f).exists() for f in frames)
+    last = meshio.read(tmp_path / frames[-1])
+    u = last.point_data["displacement"]
+    assert u[:, 1].min() == pytest.approx(-0.01 * solver.committed.t, rel=1e-10)
+    rows = np.genfromtxt(tmp_path / "block_curve.csv", delimiter=",", names=True)
+    assert rows["force"][-1] == pytest.approx(0.01 * solver.committed.t * 8 / 3 * 2, rel=1e-9)
+
+
+def test_tier2_block_writes_fabric_fields(tmp_path):
+    """A tier-2 block sheared past yield: the state carries (gp, c, A, Bc, Bs) per point and
+    the frames hold B and the θp director; the fabric stays admissible."""
+    from contfab.fem.material import TierMaterial
+    from contfab.params import default_params
+    from dem.conventions import admissibility_margin
+
+    mesh = M.tensor(np.linspace(0, 1, 3), np.linspace(0, 1, 3))
+    disc = Discretization(mesh, "P2")
+    material = TierMaterial(default_params(), tier=2)
+    n = disc.npoints
+    solver = Solver(disc, material, np.column_stack((-np.ones(n), -np.ones(n), np.zeros(n))),
+                    material.initial_state(n))
+    top = L.boundary_dofs(disc, "top", "y")
+    fixed = np.unique(np.concatenate([top, L.boundary_dofs(disc, "bottom", "y"),
+                                      L.boundary_dofs(disc, "left", "x")]))
+    f = L.surface_load(disc, "right", pressure=1.0)
+    stage = Stage("compress", fixed, np.where(np.isin(fixed, top), -0.02, 0.0), f, dt0=0.1)
+    out = analysis.Outputs(tmp_path, "t2")
+    analysis.run(solver, [stage], lambda s: {"force": -s.reactions(top)}, out, progress=False)
+    state = solver.committed.state
+    assert material.state_names == ("gp", "c", "A", "Bc", "Bs") and state.shape == (n, 5)
+    assert state[:, 0].max() > 0.01                   # the block yielded
+    b = np.hypot(state[:, 3], state[:, 4])
+    assert b.max() > 0 and np.all(admissibility_margin(state[:, 2], b) >= -1e-12)
+    frame = meshio.read(sorted(tmp_path.glob("t2_*.vtu"))[-1])
+    director = frame.cell_data["director"][0]
+    assert {"B", "A", "c", "gp", "yield", "R_over_P"} <= set(frame.cell_data)
+    assert np.allclose(np.hypot(director[:, 0], director[:, 1]), 1.0)
