@@ -115,22 +115,28 @@ def template(cs: CampaignSettings, targets: Sequence[fitting.Target], tier: int)
 
 # --------------------------------------------------------------------------- fits
 
-def fit_tier1(start: Params, targets, progress: bool) -> fitting.FitResult:
-    res = fitting.fit(start, 1, fitting.TIER1, targets, max_nfev=60, progress=progress,
+MAX_NFEV = 40
+"""Default least-squares evaluations per fit stage (each costs one model run per target;
+the forward-difference Jacobian another one per fitted parameter)."""
+
+
+def fit_tier1(start: Params, targets, progress: bool, max_nfev: int = MAX_NFEV) -> fitting.FitResult:
+    res = fitting.fit(start, 1, fitting.TIER1, targets, max_nfev=max_nfev, progress=progress,
                       desc="fit tier 1")
     phi = res.params.tier1.phi_star_deg
     res.params = res.params.replace("tier0", phi_deg=phi, psi_deg=0.0).replace("tier2", a0_deg=phi)
     return res
 
 
-def fit_tier2(tier1: Params, law: str, targets, scale, progress: bool) -> fitting.FitResult:
+def fit_tier2(tier1: Params, law: str, targets, scale, progress: bool,
+              max_nfev: int = MAX_NFEV) -> fitting.FitResult:
     """Law coefficients alone on the fabric, then planes and law together (module doc)."""
     p = tier1.replace("tier2", fabric_law=float(tier1.tier2.LAWS[law])).with_tier(2)
     first = fitting.fit(p, 2, fitting.LAWS[law], targets, quantities=("A", "Bc", "Bs"),
-                        scale=scale, max_nfev=30, progress=progress,
+                        scale=scale, max_nfev=max_nfev, progress=progress,
                         desc=f"fit tier 2 {law} (fabric law)")
     return fitting.fit(first.params, 2, fitting.PLANES + fitting.LAWS[law], targets, scale=scale,
-                       max_nfev=40, progress=progress, desc=f"fit tier 2 {law} (all)")
+                       max_nfev=max_nfev, progress=progress, desc=f"fit tier 2 {law} (all)")
 
 
 def objective(params: Params, tier: int, targets, scale) -> float:
@@ -191,7 +197,8 @@ def _models(tier: int, fits: Mapping[str, fitting.FitResult]) -> dict[str, tuple
 
 def calibrate(out: str | FsPath, tier: int = 2, campaign: CampaignSettings | None = None,
               executor: str = "serial", workers: int | None = None, scheduler: str | None = None,
-              progress: bool = True, command: str = "") -> dict[str, FsPath]:
+              progress: bool = True, command: str = "", max_nfev: int = MAX_NFEV
+              ) -> dict[str, FsPath]:
     """Run the campaign, fit, evaluate and write the files of the module doc into ``out``;
     returns {what: file}."""
     if tier not in (1, 2):
@@ -208,13 +215,13 @@ def calibrate(out: str | FsPath, tier: int = 2, campaign: CampaignSettings | Non
     targets = load_targets(cs, layout)
     fit_t, held = targets["fit"], targets["heldout"]
     start = template(cs, fit_t, tier)
-    fits: dict[str, fitting.FitResult] = {"tier1": fit_tier1(start, fit_t, progress)}
+    fits: dict[str, fitting.FitResult] = {"tier1": fit_tier1(start, fit_t, progress, max_nfev)}
     scale = fitting.scales(fit_t)
     choice = None
     heldout_objective = {}
     if tier == 2:
         for law in LAW_NAMES:
-            fits[law] = fit_tier2(fits["tier1"].params, law, fit_t, scale, progress)
+            fits[law] = fit_tier2(fits["tier1"].params, law, fit_t, scale, progress, max_nfev)
             heldout_objective[law] = (objective(fits[law].params, 2, held, scale) if held
                                       else math.nan)
         choice = min(LAW_NAMES, key=lambda law: (heldout_objective[law]

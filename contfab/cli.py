@@ -177,22 +177,33 @@ def _add_calibrate(p: argparse.ArgumentParser) -> None:
                    help=f"DEM samples per run, seeds 1..K (default {len(d.seeds)})")
     p.add_argument("--out", required=True,
                    help="campaign directory (reused: finished DEM runs are not rerun)")
+    p.add_argument("--kappas", type=float, nargs="+", default=[1e3, 1e4],
+                   help="stiffness numbers kn/P0 of the fitted biaxial runs (default 1e3 1e4)")
+    p.add_argument("--kappa-heldout", type=float, default=3e3,
+                   help="stiffness number of the held-out biaxial runs (default 3e3)")
+    p.add_argument("--max-nfev", type=int, default=40,
+                   help="least-squares evaluations per fit stage (default 40)")
     p.add_argument("--no-probe", action="store_true", help="skip the stress-probing runs")
     _executor_args(p)
 
 
 def _run_calibrate(args) -> None:
     from contfab.calibrate import calibrate
-    from contfab.campaign import CampaignSettings
+    from contfab.campaign import CampaignSettings, default_runs
 
     if args.seeds < 1:
         raise ValueError(f"--seeds {args.seeds} out of range; accepted >= 1")
+    if args.max_nfev < 1:
+        raise ValueError(f"--max-nfev {args.max_nfev} out of range; accepted >= 1")
     cs = CampaignSettings(n=args.n, seeds=tuple(range(1, args.seeds + 1)),
-                          probe=not args.no_probe)
+                          runs=default_runs(tuple(args.kappas), args.kappa_heldout),
+                          probe=not args.no_probe, probe_kappa=args.kappas[0])
     command = (f"contfab calibrate --tier {args.tier} --n {args.n} --seeds {args.seeds} "
+               f"--kappas {' '.join(f'{k:g}' for k in args.kappas)} "
+               f"--kappa-heldout {args.kappa_heldout:g} --max-nfev {args.max_nfev} "
                f"--out {args.out}{' --no-probe' if args.no_probe else ''}")
     written = calibrate(args.out, args.tier, cs, args.executor, args.workers, args.scheduler,
-                        command=command)
+                        command=command, max_nfev=args.max_nfev)
     for what in ("params", "report", "errors_md", "summary"):
         print(f"{what:>10}: {written[what]}")
     print(f"{'plots':>10}: {FsPath(args.out) / 'report'}/*.png")
