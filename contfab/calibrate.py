@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import replace
+from dataclasses import asdict, replace
 from pathlib import Path as FsPath
 from typing import Mapping, Sequence
 
@@ -235,7 +235,7 @@ def calibrate(out: str | FsPath, tier: int = 2, campaign: CampaignSettings | Non
     written.update(probing.pop("files", {}))
     seconds = {"dem": t_dem, "fit": t_fit, "total": time.perf_counter() - t0}
     summary = _summary(cs, tier, fits, choice, heldout_objective, written.pop("rows"), probing,
-                       seconds, command)
+                       seconds, command, max_nfev)
     header = (f"contfab model parameters, calibrated from the embedded DEM by\n"
               f"  {command or 'contfab calibrate'}\n"
               f"([provenance] records the DEM settings, seeds, code version, fit residuals per\n"
@@ -384,7 +384,8 @@ def transient_rows(rows: Sequence[Mapping]) -> list[dict]:
     return out
 
 
-def _summary(cs, tier, fits, choice, heldout_objective, rows, probing, seconds, command) -> dict:
+def _summary(cs, tier, fits, choice, heldout_objective, rows, probing, seconds, command,
+             max_nfev) -> dict:
     fit_tables = {name: f.table() for name, f in fits.items()}
     models = [r["model"] for r in rows]
     provenance = {
@@ -392,9 +393,9 @@ def _summary(cs, tier, fits, choice, heldout_objective, rows, probing, seconds, 
         "created": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
         "versions": code_versions(),
         "seconds": seconds,
+        "max_nfev": max_nfev,
         "campaign": {k: v for k, v in cs.to_dict().items() if k != "runs"},
-        "runs": {f"{r['path']}_{r['density']}_k{r['kappa']:g}": r["role"]
-                 for r in cs.to_dict()["runs"]},
+        "runs": {spec.name: asdict(spec) for spec in cs.runs},
         "fabric_law_choice": choice or "",
         "heldout_objective": {k: v for k, v in heldout_objective.items()},
         "fitted": {name: {f"{p['section']}.{p['key']}": {"value": p["value"], "stderr": p["stderr"],
