@@ -157,3 +157,17 @@ def test_softmax_shortfall_scales_as_one_over_sharpness(tier2_prm):
         assert shortfalls[beta] == pytest.approx(w_min * dh, rel=1e-9)
         assert shortfalls[beta] <= 0.27847 / beta
     assert shortfalls[1000.0] < shortfalls[100.0] < shortfalls[10.0]
+
+
+def test_arc_u_wraps_any_angle_in_one_step():
+    """u = 2θ - 2α wrapped to (-π, π]; a diverging iterate (θ ~ 1e20, or inf) returns at
+    once (it hung the tier-2 local solve in a loop of 2π steps), inf as NaN."""
+    from contfab.models.slip_planes import arc_u
+
+    for theta, two_alpha, expected in [(0.25, 0.0, 0.5), (1.5 * np.pi + 0.05, 0.0, -np.pi + 0.1),
+                                       (0.5 * np.pi, 0.0, np.pi), (-0.5 * np.pi, 0.0, np.pi),
+                                       (0.0, 7.0, 2.0 * np.pi - 7.0)]:
+        assert arc_u(theta, 0.0, two_alpha) == pytest.approx(expected, abs=1e-12)
+    u = arc_u(1e20, 0.0, 0.0)
+    assert -np.pi < u <= np.pi
+    assert np.isnan(arc_u(np.inf, 0.0, 0.0))

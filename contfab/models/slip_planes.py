@@ -316,10 +316,8 @@ def stress_frame(sxx, syy, sxy):
 def arc_u(theta, g, two_alpha):
     """u = 2(θ - α) of plane θ, wrapped to (-π, π] and moved to the nearest end of arc g."""
     u = 2.0 * theta - two_alpha
-    while u > np.pi:
-        u -= 2.0 * np.pi
-    while u <= -np.pi:
-        u += 2.0 * np.pi
+    # one modulo, not a loop: a diverging iterate (|u| ~ 1e20, or inf) must not hang
+    u = np.pi - np.mod(np.pi - u, 2.0 * np.pi)
     if g < 0.0 and u < 0.0:
         return 0.0 if u > -0.5 * np.pi else np.pi
     if g > 0.0 and u > 0.0:
