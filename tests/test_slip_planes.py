@@ -167,8 +167,16 @@ def test_arc_u_wraps_to_the_half_open_period(theta, two_alpha):
     assert k == pytest.approx(round(k), abs=1e-9)  # u differs from 2(θ - α) by whole turns
 
 
-def test_arc_u_of_a_huge_angle_returns_at_once():
-    # A garbage warm start (1e300) once made the ±2π wrap loop forever.
-    u = sp.arc_u(1e300, 0.0, 0.3)
+
+def test_arc_u_wraps_any_angle_in_one_step():
+    """u = 2θ - 2α wrapped to (-π, π]; a diverging iterate (θ ~ 1e20, or inf) returns at
+    once (it hung the tier-2 local solve in a loop of 2π steps), inf as NaN."""
+    from contfab.models.slip_planes import arc_u
+
+    for theta, two_alpha, expected in [(0.25, 0.0, 0.5), (1.5 * np.pi + 0.05, 0.0, -np.pi + 0.1),
+                                       (0.5 * np.pi, 0.0, np.pi), (-0.5 * np.pi, 0.0, np.pi),
+                                       (0.0, 7.0, 2.0 * np.pi - 7.0)]:
+        assert arc_u(theta, 0.0, two_alpha) == pytest.approx(expected, abs=1e-12)
+    u = arc_u(1e20, 0.0, 0.0)
     assert -np.pi < u <= np.pi
-    assert np.isnan(sp.arc_u(np.nan, 0.0, 0.3))
+    assert np.isnan(arc_u(np.inf, 0.0, 0.0))

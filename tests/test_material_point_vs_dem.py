@@ -1,0 +1,143 @@
+"""The material point against the DEM on the same loading paths, with the parameters
+calibrated on that DEM.
+
+(a) Stored DEM reference curves (tests/data/dem_reference: the seed-mean curves of a
+    calibration campaign, at most 60 points each; index.json records the campaign, the
+    runs, start states, and the errors the calibrated models had on exactly these curves;
+    params.toml is that calibration's parameter file, with its provenance). They are
+    written by ``contfab calibrate`` into ``DIR/report/reference/`` and ``DIR/params.toml``
+    and copied here (README, "Calibration from the DEM"). For
+    every standard path and tier: the steady (residual-window) error of each quantity may
+    not move by more than RESIDUAL_SLACK, nor its RMS by more than RMS_SLACK (a model that
+    got better also fails: then regenerate the record with the new calibration).
+(b) A live DEM run (the campaign's N, one seed not in the campaign) of one fitted path
+    (loose biaxial, κ = 1e3) and one held-out path (isochoric shear, dense, κ = 1e3)
+    through ``contfab compare``: its steady R/P and c agree with the stored seed means
+    within LIVE_DEM (a few single-sample standard deviations at that N), and the models
+    agree with it within LIVE_MODEL.
+
+A change of the model moves (a) and (b); a change of the DEM moves (b). The deliberate
+perturbations of the model they catch are tested below; that of the DEM (friction μ 0.5
+-> 0.3 in the live run) is reported with the calibration (issue 4).
+"""
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from contfab.compare import compare
+from contfab.curves import errors, read_curve
+from contfab.fitting import Target, run_model
+from contfab.params import load_params
+from dem.paths import load_path
+
+REF = Path(__file__).parent / "data" / "dem_reference"
+INDEX = json.loads((REF / "index.json").read_text())
+CAMPAIGN = INDEX["campaign"]
+PARAMS = load_params(REF / "params.toml")
+LAW = PARAMS.tier2.to_dict()["fabric_law"]
+MODELS = {0: "tier 0", 1: "tier 1", 2: f"tier 2 {LAW}"}
+QUANTITIES = {0: ("RP", "eps_v"), 1: ("RP", "eps_v", "c"),
+              2: ("RP", "eps_v", "c", "A", "B", "theta_p")}
+RESIDUAL_SLACK = {"RP": 0.01, "eps_v": 0.003, "c": 0.001, "A": 0.02, "B": 0.01, "theta_p": 3.0}
+RMS_SLACK = {"RP": 0.01, "eps_v": 0.003, "c": 0.001, "A": 0.02, "B": 0.01, "theta_p": 3.0}
+
+
+def stored_target(name: str) -> Target:
+    entry = INDEX["curves"][name]
+    path = load_path(entry["path"])
+    if entry["probe"] >= 0:
+        path = path.expand()[entry["probe"]]
+    return Target(name, path, read_curve(REF / entry["file"], entry["start"]), entry)
+
+
+def mismatches(params, tier: int, name: str) -> list[str]:
+    """What of the model's errors on a stored curve left the recorded ones."""
+    target = stored_target(name)
+    now = errors(target.curve, run_model(params, tier, target)[0])
+    recorded = INDEX["curves"][name]["errors"][MODELS[tier]]
+    bad = []
+    for q in QUANTITIES[tier]:
+        e, r = now[q], recorded[q]
+        if not abs(e["residual_error"] - r["residual_error"]) <= RESIDUAL_SLACK[q]:
+            bad.append(f"{q}: residual error {e['residual_error']:.4g}, recorded {r['residual_error']:.4g}")
+        if not abs(e["rms"] - r["rms"]) <= RMS_SLACK[q]:
+            bad.append(f"{q}: rms {e['rms']:.4g}, recorded {r['rms']:.4g}")
+    return bad
+
+
+@pytest.mark.parametrize("tier", [0, 1, 2])
+@pytest.mark.parametrize("name", sorted(INDEX["curves"]))
+def test_model_against_stored_dem_curves(name, tier):
+    assert mismatches(PARAMS, tier, name) == []
+
+
+def test_every_standard_path_has_stored_dem_curves():
+    from dem.paths import standard_paths
+
+    assert {e["path"] for e in INDEX["curves"].values()} == set(standard_paths())
+    assert {e["role"] for e in INDEX["curves"].values()} == {"fit", "heldout", "reference"}
+
+
+@pytest.mark.parametrize("tier, section, change", [
+    (1, "tier1", {"phi_star_deg": PARAMS.tier1.phi_star_deg + 2.0}),
+    (1, "tier1", {"c_star": PARAMS.tier1.c_star + 0.004}),
+    (2, "tier2", {"a0_deg": PARAMS.tier2.a0_deg + 2.0}),
+])
+def test_a_perturbed_model_is_caught(tier, section, change):
+    """φ* + 2°, c* + 0.004 (tier 1), a0 + 2° (tier 2): the stored-curve check fails."""
+    perturbed = PARAMS.replace(section, **change)
+    fitted = [n for n, e in INDEX["curves"].items() if e["role"] == "fit"]
+    assert any(mismatches(perturbed, tier, n) for n in fitted)
+
+
+# --------------------------------------------------------------------------- (b) live DEM
+
+LIVE = {"biaxial_loose_k1000": ("biaxial", "loose"),
+        "isochoric_shear_dense_k1000": ("isochoric_shear", "dense")}
+LIVE_SEED = max(CAMPAIGN["seeds"]) + 1
+N_SCALE = math.sqrt(500.0 / CAMPAIGN["n"])
+"""Sample-to-sample fluctuations of an RVE's steady values fall as 1/sqrt(N)."""
+LIVE_DEM = {"RP": 0.05 * N_SCALE, "c": 0.004 * N_SCALE}
+"""|live steady value - stored seed mean|: ~2.5 single-sample standard deviations, 0.05 in
+R/P and 0.004 in c at N = 500, scaled by 1/sqrt(N) to the campaign's N."""
+LIVE_MODEL = {"RP": 0.06 * N_SCALE, "c": 0.006 * N_SCALE}
+
+
+@pytest.fixture(scope="module")
+def live(tmp_path_factory):
+    out = tmp_path_factory.mktemp("live")
+    runs = {}
+    for name, (path, density) in LIVE.items():
+        compare(path, out / name, str(REF / "params.toml"), 1, n=CAMPAIGN["n"], seed=LIVE_SEED, kappa=1e3,
+                density=density)
+        runs[name] = json.loads((out / name / "errors.json").read_text())
+    return out, runs
+
+
+@pytest.mark.parametrize("name", sorted(LIVE))
+def test_live_dem_matches_the_stored_dem_curves(live, name):
+    _, runs = live
+    stored = INDEX["curves"][name]["errors"]["tier 1"]
+    live_err = runs[name]["errors"][LIVE[name][0]]          # keyed by the path's name
+    for q, tol in LIVE_DEM.items():
+        live_dem = live_err[q]["residual_dem"]
+        stored_dem = stored[q]["residual_dem"]
+        assert abs(live_dem - stored_dem) <= tol, (q, live_dem, stored_dem)
+
+
+@pytest.mark.parametrize("tier", [1, 2])
+@pytest.mark.parametrize("name", sorted(LIVE))
+def test_models_match_the_live_dem(live, name, tier):
+    out, _ = live
+    path, density = LIVE[name]
+    run = out / name / "dem" / "run"
+    from contfab.curves import dem_curve, read_history
+
+    target = Target(name, load_path(path), dem_curve(load_path(path), [read_history(run / "history.csv")]))
+    e = errors(target.curve, run_model(PARAMS, tier, target)[0])
+    for q, tol in LIVE_MODEL.items():
+        assert abs(e[q]["residual_error"]) <= tol, (q, e[q])
+    assert math.isfinite(e["RP"]["rms"]) and np.isfinite(target.curve.mean["RP"]).all()
