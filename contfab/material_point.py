@@ -116,10 +116,15 @@ class IntegrationError(ValueError):
 # --------------------------------------------------------------------------- one increment
 
 def spin_derivative(stress: np.ndarray, tangent: np.ndarray, dstrain: np.ndarray) -> np.ndarray:
-    """S = ∂σ_{n+1}/∂Δω = W(σ_{n+1}) - T W(Δε) of an objective update (module doc)."""
-    w_stress = np.array([-2.0 * stress[2], 2.0 * stress[2], stress[0] - stress[1]])
-    w_strain = np.array([-dstrain[2], dstrain[2], 2.0 * (dstrain[0] - dstrain[1])])
-    return w_stress - tangent @ w_strain
+    """S = ∂σ_{n+1}/∂Δω = W(σ_{n+1}) - T W(Δε) of an objective update (module doc).
+
+    One point ((3,), (3, 3), (3,)) or many ((n, 3), (n, 3, 3), (n, 3)) at once.
+    """
+    w_stress = np.stack([-2.0 * stress[..., 2], 2.0 * stress[..., 2],
+                         stress[..., 0] - stress[..., 1]], axis=-1)
+    w_strain = np.stack([-dstrain[..., 2], dstrain[..., 2],
+                         2.0 * (dstrain[..., 0] - dstrain[..., 1])], axis=-1)
+    return w_stress - np.einsum("...ij,...j->...i", tangent, w_strain)
 
 
 def control_jacobian(stress: np.ndarray, tangent: np.ndarray, dstrain: np.ndarray) -> np.ndarray:

@@ -1,6 +1,10 @@
 """The boundary-value cases at their --fast presets: headline numbers with tolerances."""
+import csv
 import json
 import math
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -56,6 +60,8 @@ def test_biaxial_band_angle_within_5_degrees_of_roscoe_coulomb_and_softening():
     (["case", "strip_footing", "--level", "99", "--out", "none"], "mesh level = 99 is outside"),
     (["case", "retaining_wall", "--phi", "95", "--out", "none"], "phi_deg = 95 is outside"),
     (["case", "biaxial_shear_band", "--dense", "0.5", "--out", "none"], "dense = 0.5"),
+    (["case", "simple_shear_reversal", "--dgamma", "0.5", "--out", "none"],
+     "dgamma = 0.5 is outside the accepted range (0, 0.1]"),
     (["case", "no_such_case"], "unknown case 'no_such_case'"),
 ])
 def test_bad_case_input_is_a_clean_error(argv, message, capsys):
@@ -67,4 +73,33 @@ def test_bad_case_input_is_a_clean_error(argv, message, capsys):
 def test_case_listing(capsys):
     assert main(["case"]) == 0
     out = capsys.readouterr().out
-    assert all(n in out for n in ("strip_footing", "retaining_wall", "biaxial_shear_band"))
+    assert all(n in out for n in ("strip_footing", "retaining_wall", "biaxial_shear_band",
+                                  "simple_shear_reversal"))
+
+
+def test_simple_shear_reversal_fast_against_the_point_driver_and_the_dem(tmp_path):
+    """The homogeneous layer is the material point (τ/σn to 1e-6); the references are the
+    stored DEM curve's values at the stage ends; tier 2's fabric direction flips on
+    reversal as the DEM's does (θp < 0 after γ = +1, > 0 after γ = -1, within 15°)."""
+    # its own process (``python cases/NAME.py``): after a failed strip_footing case in the
+    # same process its first tier-1 update hung (not yet understood; see the report)
+    root = Path(__file__).parent.parent
+    done = subprocess.run([sys.executable, str(root / "cases/simple_shear_reversal.py"), "--fast",
+                           "--json", "--quiet", "--out", str(tmp_path)],
+                          capture_output=True, text=True, timeout=180)
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout)
+    with open(root / "cases/data/simple_shear_reversal_dem.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    forward_end = [r for r in rows if r["stage"] == "0"][-1]
+    expected = {"+1": forward_end, "-1": rows[-1]}
+    for f in out["figures"]:
+        row = expected[f["name"].split("gamma = ")[1].split(" ")[0]]
+        assert f["reference"] == pytest.approx(float(row["sxy"]) / -float(row["syy"]), rel=1e-9)
+    assert out["tier1"]["max_dev_vs_point"] < 1e-6
+    t2 = out["tier2"]
+    assert t2["theta_p_at_gamma_1"] < 0 < t2["theta_p_at_gamma_-1"]
+    assert t2["dem_theta_p_at_gamma_1"] < 0 < t2["dem_theta_p_at_gamma_-1"]
+    for g in ("1", "-1"):
+        assert abs(t2[f"theta_p_at_gamma_{g}"] - t2[f"dem_theta_p_at_gamma_{g}"]) < 15.0
+    assert "simple_shear_reversal_vs_dem.csv" in {p.name for p in tmp_path.iterdir()}

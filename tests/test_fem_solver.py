@@ -106,3 +106,46 @@ def test_tier2_block_writes_fabric_fields(tmp_path):
     director = frame.cell_data["director"][0]
     assert {"B", "A", "c", "gp", "yield", "R_over_P"} <= set(frame.cell_data)
     assert np.allclose(np.hypot(director[:, 0], director[:, 1]), 1.0)
+
+
+def _platen(ties: bool):
+    """A 2x1 elastic block on a smooth base, left side on rollers, a point force F on the
+    top-right corner; ``ties``: the top is a rigid platen (all top uy tied to one)."""
+    mesh = M.tensor(np.linspace(0, 2, 5), np.linspace(0, 1, 3))
+    disc = Discretization(mesh, "P2")
+    top = L.boundary_dofs(disc, "top", "y")
+    fixed = np.concatenate([L.boundary_dofs(disc, "bottom", "y"), L.boundary_dofs(disc, "left", "x")])
+    fixed = np.unique(np.append(fixed, L.boundary_dofs(disc, "bottom", "x")[0]))
+    corner = top[np.argmax(disc.basis.doflocs[0, top])]
+    f = np.zeros(disc.ndofs)
+    f[corner] = -0.3
+    pairs = np.column_stack((top[top != corner], np.full(len(top) - 1, corner))) if ties else None
+    n = disc.npoints
+    solver = Solver(disc, Elastic(), np.zeros((n, 3)), np.zeros((n, 1)))
+    return disc, solver, Stage("load", fixed, np.zeros(len(fixed)), f, dt0=1.0, dt_max=1.0,
+                               ties=pairs), top
+
+
+def test_tied_dofs_move_as_a_rigid_platen_and_balance_the_load():
+    disc, solver, stage, top = _platen(ties=True)
+    (record,) = list(solver.run_stage(stage))
+    u_top = solver.committed.u[top]
+    assert record.iterations == 1 and np.ptp(u_top) == 0.0 and u_top[0] < 0
+    # the same platen settlement imposed as a displacement needs the same total force
+    disc, solver2, free_stage, _ = _platen(ties=False)
+    fixed = np.concatenate((free_stage.fixed_dofs, top))
+    imposed = Stage("push", fixed, np.concatenate((np.zeros(len(free_stage.fixed_dofs)), u_top)),
+                    np.zeros(disc.ndofs), dt0=1.0, dt_max=1.0)
+    list(solver2.run_stage(imposed))
+    assert solver2.reactions(top) == pytest.approx(-0.3, rel=1e-9)
+    assert np.allclose(solver2.committed.u, solver.committed.u, rtol=0, atol=1e-12)
+
+
+def test_bad_ties_are_clear_errors():
+    fixed, f = np.array([0, 1]), np.zeros(8)
+    with pytest.raises(ValueError, match="a tied DOF is constrained"):
+        Stage("s", fixed, np.zeros(2), f, ties=np.array([[1, 2]]))
+    with pytest.raises(ValueError, match=r"ties must be \(k, 2\) pairs"):
+        Stage("s", fixed, np.zeros(2), f, ties=np.array([2, 3]))
+    with pytest.raises(ValueError, match="2 ties but tie_factors of shape"):
+        Stage("s", fixed, np.zeros(2), f, ties=np.array([[2, 3], [4, 3]]), tie_factors=np.ones(3))

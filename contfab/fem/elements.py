@@ -2,8 +2,8 @@
 
 The quadrature points are the material points: the model's stress and state live
 there, so the rule is part of the element's definition (and of its cost and its
-locking behaviour under isochoric plastic flow, see the element study in
-``cases/element_study.py``).
+locking behaviour under isochoric plastic flow: the element study in
+``docs/fem_validation.md`` and ``tests/test_fem_locking.py``).
 
     name  element                      mesh   points  (scikit-fem)
     P1    linear triangle              tri    1       ElementTriP1, centroid rule

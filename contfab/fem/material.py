@@ -10,11 +10,16 @@ the Newton matrix is singular. ``apex_stiffness`` = ε replaces their tangent *i
 Newton matrix only* by ε·C (C the regularization stiffness): the residual, hence the
 converged solution, is unchanged — only the iteration path differs — so the device
 needs no convergence study in ε (the case scripts still report one). ε = 0 turns it off.
+
+**Spin tangent.** Every tier rotates its inputs by the exact spin angle and updates
+objectively, so ∂σ/∂ω follows from the strain tangent without another update call
+(:func:`contfab.material_point.spin_derivative`, S = W(σ) - T W(Δε)).
 """
 from __future__ import annotations
 
 import numpy as np
 
+from contfab.material_point import spin_derivative
 from contfab.models import tiers
 from contfab.params import ParamError, Params
 from contfab.tensors import isotropic_stiffness
@@ -46,3 +51,7 @@ class TierMaterial:
         if self.apex_stiffness > 0.0:
             res.tangent[res.status == APEX] = self._apex_tangent
         return res
+
+    def spin_tangent(self, stress_n, state_n, dstrain, dspin, res) -> np.ndarray:
+        """∂σ/∂ω (npoints, 3) of the update ``res`` over (dstrain, dspin): exact, no call."""
+        return spin_derivative(res.stress, res.tangent, dstrain)

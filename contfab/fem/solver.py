@@ -13,9 +13,10 @@ K = Σ w Bᵀ(D B + g W) from its algorithmic tangent D = ∂σ/∂e (non-symmet
 ψ ≠ φ) and the spin tangent g = ∂σ/∂ω, and solves K_ff δu_f = -r_f - K_fc δū_c.
 The update contract's tangent leaves out g (the objective rotation of the stress by
 the spin); without it Newton converges only linearly once the mechanism rotates
-(measured on the footing: residual ÷5 per iteration instead of squaring), so g is
-taken by a forward difference in ω, one extra update call per iteration
-(``NewtonOptions.spin_step``; 0 turns it off).
+(measured on the footing: residual ÷5 per iteration instead of squaring). g comes
+from the material (``material.spin_tangent``: exact for the objective tiers, no extra
+update call) or else by a forward difference in ω, one extra update call per
+iteration (``NewtonOptions.spin_step``; 0 turns it off).
 
 A stage drives a parameter t from 0 to 1: prescribed displacements
 ū(t) = ū_start + t Δū on its constrained DOFs (displacement control) and external
@@ -83,7 +84,11 @@ class Stage:
 
     ``fixed_dofs`` lists every constrained DOF (supports and driven DOFs alike);
     ``increment`` is their prescribed displacement change over the stage (zeros for
-    supports). ``reset_displacement`` zeroes u after the stage but keeps stress and
+    supports). ``ties`` make free DOFs move together (a rigid platen, a periodic or
+    homogeneous layer): each follower DOF is ``tie_factors`` (default 1) times its
+    leader, which must be free and not itself a follower; the ties must hold at the
+    stage's start.
+    ``reset_displacement`` zeroes u after the stage but keeps stress and
     state (a geostatic stage: the initial stress is in equilibrium, settlements
     count from there).
     """
@@ -97,6 +102,8 @@ class Stage:
     dt_min: float = 1e-4
     dt_max: float = 0.1
     reset_displacement: bool = False
+    ties: np.ndarray | None = None      # (k, 2) free DOF pairs (follower, leader)
+    tie_factors: np.ndarray | None = None   # (k,) u_follower = factor u_leader (default 1)
 
     def __post_init__(self):
         if len(self.fixed_dofs) != len(self.increment):
@@ -104,6 +111,19 @@ class Stage:
                              f"{len(self.increment)} prescribed increments")
         if len(np.unique(self.fixed_dofs)) != len(self.fixed_dofs):
             raise ValueError(f"stage {self.name!r}: a DOF is constrained twice")
+        if self.ties is not None:
+            ties = np.asarray(self.ties)
+            if ties.ndim != 2 or ties.shape[1] != 2:
+                raise ValueError(f"stage {self.name!r}: ties must be (k, 2) pairs, got shape "
+                                 f"{ties.shape}")
+            bad = np.isin(ties, self.fixed_dofs).any() or len(np.unique(ties[:, 0])) != len(ties) \
+                or np.isin(ties[:, 1], ties[:, 0]).any()
+            if bad:
+                raise ValueError(f"stage {self.name!r}: a tied DOF is constrained, a follower is "
+                                 "tied twice, or a leader is itself a follower")
+            if self.tie_factors is not None and np.shape(self.tie_factors) != (len(ties),):
+                raise ValueError(f"stage {self.name!r}: {len(ties)} ties but tie_factors of "
+                                 f"shape {np.shape(self.tie_factors)}")
         if not 0 < self.dt_min <= self.dt0 <= 1 or not self.dt0 <= self.dt_max <= 1:
             raise ValueError(f"stage {self.name!r}: need 0 < dt_min <= dt0 <= dt_max <= 1, "
                              f"got dt_min={self.dt_min}, dt0={self.dt0}, dt_max={self.dt_max}")
@@ -175,12 +195,30 @@ class ConstrainedSystem:
 
     SuperLU with the minimum-degree ordering of Kᵀ + K (the FE matrix is structurally
     symmetric): 3-5x faster than the default COLAMD here (0.23 s vs 1.0 s at 54k DOFs).
+    Tied DOFs (``ties``: follower, leader pairs of free DOFs, u_follower = factor ·
+    u_leader) enter through u_f = P u_r, P mapping the independent free DOFs u_r onto
+    all free DOFs: K_r = Pᵀ K_ff P and the equilibrium residual is Pᵀ r_f
+    (:meth:`free_residual`).
     """
 
-    def __init__(self, disc: Discretization, fixed: np.ndarray):
+    def __init__(self, disc: Discretization, fixed: np.ndarray, ties: np.ndarray | None = None,
+                 tie_factors: np.ndarray | None = None):
         n = disc.ndofs
         self.fixed = np.asarray(fixed, dtype=np.int64)
         self.free = np.setdiff1d(np.arange(n), self.fixed)
+        self.tie_map = None
+        if ties is not None and len(ties):
+            ties = np.asarray(ties, dtype=np.int64)
+            column = np.full(n, -1, dtype=np.int64)
+            independent = np.setdiff1d(self.free, ties[:, 0])
+            column[independent] = np.arange(len(independent))
+            column[ties[:, 0]] = column[ties[:, 1]]
+            factor = np.ones(n)
+            if tie_factors is not None:
+                factor[ties[:, 0]] = tie_factors
+            rows = np.arange(len(self.free))
+            self.tie_map = sp.csr_matrix((factor[self.free], (rows, column[self.free])),
+                                         shape=(len(self.free), len(independent)))
         probe = sp.csr_matrix((np.arange(1.0, len(disc.indices) + 1), disc.indices, disc.indptr),
                               shape=(n, n))
         kff = probe[self.free][:, self.free].tocsc()
@@ -196,9 +234,18 @@ class ConstrainedSystem:
         kfc = sp.csr_matrix((k.data[sel], ind, ptr), shape=shape)
         du = np.zeros(len(r))
         du[self.fixed] = du_fixed
-        lu = spla.splu(kff, permc_spec="MMD_AT_PLUS_A")
-        du[self.free] = lu.solve(-r[self.free] - kfc @ du_fixed)
+        rhs = -r[self.free] - kfc @ du_fixed
+        p = self.tie_map
+        if p is None:
+            du[self.free] = spla.splu(kff, permc_spec="MMD_AT_PLUS_A").solve(rhs)
+        else:
+            kr = (p.T @ kff @ p).tocsc()
+            du[self.free] = p @ spla.splu(kr, permc_spec="MMD_AT_PLUS_A").solve(p.T @ rhs)
         return du
+
+    def free_residual(self, r: np.ndarray) -> np.ndarray:
+        """The out-of-balance forces on the independent free DOFs: r_f, or Pᵀ r_f with ties."""
+        return r[self.free] if self.tie_map is None else self.tie_map.T @ r[self.free]
 
 
 def norm(x: np.ndarray) -> float:
@@ -236,7 +283,7 @@ class Solver:
 
     def run_stage(self, stage: Stage) -> Iterator[StepRecord]:
         """Advance ``stage`` from t = 0 to 1, yielding a record after each committed step."""
-        system = ConstrainedSystem(self.disc, stage.fixed_dofs)
+        system = ConstrainedSystem(self.disc, stage.fixed_dofs, stage.ties, stage.tie_factors)
         u_start = self.committed.u[system.fixed].copy()
         t, dt, attempts = 0.0, stage.dt0, []
         while t < 1.0 - 1e-12:
@@ -309,7 +356,7 @@ class Solver:
             res = self.material.update(c.stress, c.state, dstrain, dspin)
             if not np.any(res.status < 0):
                 r = self.disc.internal_force(res.stress) - f_ext
-                free = norm(r[system.free])
+                free = norm(system.free_residual(r))
                 rel = free / (max(norm(f_ext), norm(r[system.fixed])) or 1.0)
                 if best is None or not free >= best[5]:
                     best = (u_try, res, r, dstrain, dspin, free, rel)
@@ -321,7 +368,11 @@ class Solver:
         return best
 
     def _spin_tangent(self, stress_n, state_n, dstrain, dspin, res) -> np.ndarray:
-        """g = ∂σ/∂ω by a forward difference of the update (zeros when spin_step = 0)."""
+        """g = ∂σ/∂ω: the material's own (``material.spin_tangent``) if it has one, else a
+        forward difference of the update (zeros when spin_step = 0)."""
+        exact = getattr(self.material, "spin_tangent", None)
+        if exact is not None:
+            return np.ascontiguousarray(exact(stress_n, state_n, dstrain, dspin, res))
         h = self.options.spin_step
         if h == 0:
             return np.zeros_like(res.stress)
