@@ -167,7 +167,6 @@ def test_arc_u_wraps_to_the_half_open_period(theta, two_alpha):
     assert k == pytest.approx(round(k), abs=1e-9)  # u differs from 2(θ - α) by whole turns
 
 
-
 def test_arc_u_wraps_any_angle_in_one_step():
     """u = 2θ - 2α wrapped to (-π, π]; a diverging iterate (θ ~ 1e20, or inf) returns at
     once (it hung the tier-2 local solve in a loop of 2π steps), inf as NaN."""
