@@ -2,10 +2,12 @@
 
 Reduced: N = 150, κ = 1e3, I = 1e-2 (the session fixtures). These still fail if dense and
 loose samples respond alike, if the fabric leaves the admissible set, or if the fabric
-does not turn on reversal. Full size: N = 2000, κ = 1e4, I <= 1e-3, to 25% axial strain,
+does not turn on reversal. Full size: N = 2000, κ = 1e4, I <= 1e-3, to 50% axial strain,
 three seeds (acceptance 4), and simple shear with reversal (acceptance 5); figures in
 docs/dem_validation.md.
 """
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -59,8 +61,8 @@ def test_shear_reversal_turns_the_fabric_reduced(packing_frictional):
 
 
 SEEDS = (7, 11, 12)
-RESIDUAL = (0.15, 0.25)
-"""Residual window in axial strain -ε_yy: past the dense peak and the loose contraction."""
+RESIDUAL = (0.35, 0.5)
+"""Residual window in axial strain -ε_yy (see the slow test's doc)."""
 
 
 def _window_mean(rows, key, lo, hi):
@@ -68,25 +70,28 @@ def _window_mean(rows, key, lo, hi):
 
 
 def _biaxial_full_size(seed, mu_prep):
-    """The standard biaxial path (to 25%) on a sample of ``contfab dem prepare --n 2000
-    --seed SEED --mu 0.5 --mu-prep MU_PREP --kappa 1e4``, at γ̇_ref = 5e-4."""
+    """The standard biaxial path continued to 50% on a sample of ``contfab dem prepare
+    --n 2000 --seed SEED --mu 0.5 --mu-prep MU_PREP --kappa 1e4``, at γ̇_ref = 5e-4."""
     settings = Settings(n=2000, seed=seed, kappa=1e4, mu=0.5, mu_prep=mu_prep, inertial=5e-4)
     st, dyn, _ = prepare_sample(settings, progress=False)
-    runner = PathRunner(load_path("biaxial"), dyn, dyn.gdot_ref)
+    base = load_path("biaxial")
+    peak, compress = base.stages
+    path = replace(base, stages=(peak, replace(compress, length=0.48, until=())))
+    runner = PathRunner(path, dyn, dyn.gdot_ref)
     return runner.run(st, runner.start(st)).rows
 
 
 @pytest.mark.slow
 def test_dense_and_loose_reach_the_same_residual_state_full_size():
     """Acceptance 4: N = 2000, μ = 0.5, κ = 1e4, γ̇_ref = 5e-4 (measured I: mean 9e-4),
-    biaxial to 25%, seeds 7, 11, 12, each dense (μ_prep = 0) and loose (μ_prep = 0.5).
+    biaxial to 50%, seeds 7, 11, 12, each dense (μ_prep = 0) and loose (μ_prep = 0.5).
 
-    Residual R/P and c of a run: its mean over -ε_yy in [0.15, 0.25]. With N = 2000 one
-    sample's residual c still depends on the sample (a dense one may keep an unsheared
-    dense region beside its band: seed 7 reaches the loose value only near 50%), so the
+    Residual R/P and c of a run: its mean over -ε_yy in [0.35, 0.5]. Over 15-25% the dense
+    samples are not there yet: their band has reached the loose c but the rest of the cell
+    is still denser, and their R/P is 0.02 above the loose one in every seed measured. The
     fluctuation is the seed-to-seed one: dense and loose agree when their seed means differ
-    by less than two standard errors of the difference, sqrt(sd_d²/n + sd_l²/n). Measured
-    figures and wall time: docs/dem_validation.md (acceptance 4).
+    by less than two standard errors of the difference, sqrt(sd_d²/n + sd_l²/n). Figures
+    and wall time: docs/dem_validation.md (acceptance 4).
     """
     runs = {"dense": [], "loose": []}
     for seed in SEEDS:
@@ -103,7 +108,7 @@ def test_dense_and_loose_reach_the_same_residual_state_full_size():
                 assert rows[k]["RP"] > residual["RP"] + 0.1
                 assert rows[0]["c"] - residual["c"] > 0.015
             runs[name].append(residual)
-    print("\nacceptance 4 residual over -eps_yy in [0.15, 0.25], seeds " + str(SEEDS))
+    print(f"\nacceptance 4 residual over -eps_yy in {RESIDUAL}, seeds {SEEDS}")
     for q in ("RP", "c"):
         d = np.array([r[q] for r in runs["dense"]])
         lo = np.array([r[q] for r in runs["loose"]])
