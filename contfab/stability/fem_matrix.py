@@ -11,9 +11,12 @@ W x H (tier 0, φ = 30°, ψ = 0, P2 triangles). Rollers on the left (ux = 0) an
 limit σ1 = Kp p with Kp = (1 + sin φ)/(1 - sin φ), exact at any mesh, once δ is past the
 collapse displacement δ_c ≈ (Kp - 1) p H / E_reg. The accuracy is the relative error of
 the top reaction against Kp p W (for p = 0: the reaction against p_ref W, closed form 0),
-within 1e-6; a run with steps that Newton accepted at its stall tolerance
-(:class:`contfab.fem.solver.NewtonOptions`) is only held to that tolerance and marked
-ACCURACY_LOST when it misses 1e-6.
+within 1e-6. Beyond that, up to the regularization's stated error 1/λ (or the Newton
+stall tolerance of :class:`contfab.fem.solver.NewtonOptions` when steps were accepted at
+it), the point is ACCURACY_LOST: measured with load steps far past the collapse
+displacement, which land on a slightly non-homogeneous equilibrium (σyy may vary
+along x at σxx = -p, σxy = 0) with some points unloaded inside the cone (measured at
+dt0 = 1, 2x2 cells: 3 of 48 points elastic, σyy in [-3.0018, -2.9977] p, mean 6e-5 low).
 """
 from __future__ import annotations
 
@@ -69,9 +72,11 @@ def biaxial(nx: int = 2, ny: int = 2, width: float = 1.0, height: float = 1.0,
     note = (f"top stress {reaction:.9g} vs Kp p = {exact:.9g}; delta = {push:g} delta_c; "
             f"{steps} steps, {cuts} cuts, {stalled} accepted at the stall tolerance; elements {len(mesh.t.T)}, aspect "
             f"{max(width / nx, height / ny) / min(width / nx, height / ny):.3g}")
-    # a step accepted at the stall tolerance is only that accurate (NewtonOptions doc)
+    # degraded bound: the regularization's stated error ~1/λ (large steps reach a slightly
+    # different, non-homogeneous equilibrium), or the stall tolerance of accepted steps
+    lost = max(1.0 / lam, solver.options.tol_stall if stalled else 0.0)
     return Measured(err, TOL, "closed form: passive limit Kp p (homogeneous)", note,
-                    lost_tolerance=solver.options.tol_stall if stalled else None)
+                    lost_tolerance=lost)
 
 
 def points() -> list[Point]:
