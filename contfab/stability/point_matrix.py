@@ -271,8 +271,8 @@ def points() -> list[Point]:
     """Every point of the material-point matrix (``full_only`` marks the long ones)."""
     pts: list[Point] = []
 
-    # tier-2 points but B = 0 and B beyond the bound run in the full matrix only: the
-    # tier-2 update did not return on some inputs (apex, 1e-12 increments; a loop in
+    # tier-2 points (but B beyond the bound, refused before any update) run in the full
+    # matrix only: the tier-2 update did not return on some inputs (a loop in
     # slip_planes.yield_value under fabric_model._point, docs/stability.md), which the
     # supervised full run records as hangs
     def add(axis, value, fn, budget=300.0, full=False):
@@ -294,7 +294,8 @@ def points() -> list[Point]:
         add(f"apex (tier {tier})", "beyond", lambda tier=tier: run_apex(tier, True),
             full=tier == 2)
     shear = shear_path(1.0, output=0.25)
-    add("B (tier 2)", 0.0, lambda: run_path_check(2, params(2, B0=0.0), shear, steady_cone=False))
+    add("B (tier 2)", 0.0, lambda: run_path_check(2, params(2, B0=0.0), shear, steady_cone=False),
+        full=True)
     a_bound = 3.0 / math.pi
     b_bound = min(a_bound, (1.0 - math.pi / 6 * a_bound) / (math.sqrt(3) / 4))   # B = A binds
     add("B (tier 2)", f"bound {b_bound:.4f}",
