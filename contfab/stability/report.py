@@ -67,7 +67,7 @@ def run_component(component: str, full: bool, on_outcome=None) -> list[Outcome]:
                 p = pts[k]
                 o = Outcome(p.component, p.axis, p.value, FAIL, seconds=wait,
                             message=f"hang: no result within {wait:g} s (budget {p.budget_s:g} s "
-                                    f"+ {STARTUP_S:g} s start-up); the run was killed")
+                                    f"+ start-up allowance); the run was killed")
                 outcomes.append(o)
                 if on_outcome:
                     on_outcome(o)
