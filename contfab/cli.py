@@ -255,6 +255,24 @@ def _run_bench(args) -> None:
     print_figures(f"contfab bench {args.name}", figures, args.json)
 
 
+# --------------------------------------------------------------------------- stability
+
+def _add_stability(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--out", required=True, help="output directory (stability.csv, stability.png)")
+    p.add_argument("--full", action="store_true", help="the full matrix (hours on 2 cores), "
+                   "not the reduced one of the test suite")
+    p.add_argument("--only", choices=("dem", "point", "fem"), help="one component only")
+
+
+def _run_stability(args) -> int:
+    from contfab.stability.report import run
+
+    res = run(args.out, full=args.full, only=args.only)
+    print("  ".join(f"{k.lower()}: {v}" for k, v in res["counts"].items()))
+    print(f"wrote {res['csv']}\nwrote {res['png']}")
+    return 1 if res["counts"]["FAIL"] else 0
+
+
 COMMANDS = {
     "paths": (_add_paths, _run_paths, "list the standard loading paths, or show one"),
     "dem": (_add_dem, _run_dem, "the 2D disc-DEM RVE: prepare samples, run loading paths"),
@@ -266,6 +284,8 @@ COMMANDS = {
                                                   "params.toml with provenance and a report"),
     "compare": (_add_compare, _run_compare, "the DEM and the material point on one path: "
                                             "overlay plots and error metrics"),
+    "stability": (_add_stability, _run_stability, "run the numerical-stability matrix (CSV and "
+                                                  "PNG map of pass / clear error / accuracy lost / fail)"),
 }
 
 
