@@ -66,3 +66,55 @@ def test_homogeneous_biaxial_matches_standalone_cell(sample):
     assert all(r.residuals[-1] <= NEWTON.tol_stall for r in solver.records)
     assert abs(solver.committed.stress[:, 0].mean() / -p0 - 1) < 1e-2
     np.testing.assert_allclose(solver.committed.stress[:, 0], -p0, rtol=2e-2)
+
+
+def homogeneous_run(sample, cells_of, steps=2):
+    """Stresses of the one-element smooth biaxial scene with cells from ``cells_of(n)``."""
+    scene = build("biaxial", strain=2e-4 * steps, steps=steps, rough=False)
+    with cells_of(scene.disc.npoints) as cells:
+        _, _, stresses = run_scene(scene, cells)
+    return stresses
+
+
+def test_process_pool_reproduces_serial_and_recovers_a_killed_process(sample, tmp_path):
+    """Acceptance 3 (pool part): two spawned processes give the serial numbers bitwise,
+    also when one is killed between steps (its cells restart from their checkpoints)."""
+    serial = homogeneous_run(sample, lambda n: SerialCells(sample, n, NO_RELAX))
+    pooled = homogeneous_run(sample, lambda n: ProcessCells(sample, n, NO_RELAX, workers=2))
+    np.testing.assert_array_equal(pooled, serial)
+
+    class KillAfterFirstCommit(ProcessCells):
+        def commit(self, fe_step):
+            super().commit(fe_step)
+            if fe_step == 1:
+                self.procs[0].kill()
+                self.procs[0].join()
+    pools = []
+
+    def killing(n):
+        pools.append(KillAfterFirstCommit(sample, n, NO_RELAX, workers=2, ckdir=tmp_path))
+        return pools[-1]
+    recovered = homogeneous_run(sample, killing)
+    assert pools[0].recoveries == 1
+    np.testing.assert_array_equal(recovered, serial)
+    assert len(list(tmp_path.glob("cell_*.npz"))) == 4
+
+
+def test_unrelaxed_cell_is_named_and_the_step_cut(sample):
+    """Acceptance 4: a cell without equilibrium within its budget fails the update with
+    its element, quadrature point and position; the solver cuts the step to its minimum."""
+    from dem.prepare import unbalanced_force_ratio
+    from contfab.fexdem.cell import start_cell
+    state, dyn, _, _ = checkpoint.load(sample)
+    f0 = unbalanced_force_ratio(start_cell(state, dyn), dyn.law)
+    strict = CellOptions(force_tol=1.5 * f0, kinetic_tol=np.inf, relax_budget=0)
+    scene = build("biaxial", strain=2e-4, steps=1, rough=False)
+    with SerialCells(sample, scene.disc.npoints, strict) as cells:
+        with pytest.raises(ConvergenceError) as err:
+            run_scene(scene, cells)
+    msg = str(err.value)
+    assert "failed DEM cells: DEM cell at element 0, quadrature point 0 at (x, y) = (" in msg
+    assert "no quasi-static equilibrium after 0 relaxation steps" in msg
+    cuts = err.value.attempts
+    assert len(cuts) >= 3 and cuts[-1]["dt"] == pytest.approx(scene.stage.dt_min)
+    assert all("constitutive update failed" in a["reason"] for a in cuts)

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from contfab.fem.solver import NewtonOptions, Solver
+from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver
 from contfab.fexdem.cell import CellOptions, advance_cell, measure_cell, start_cell
 from contfab.models import tiers
 from contfab.params import Params
@@ -141,6 +141,15 @@ class FexdemSolver(Solver):
         super().__init__(disc, material, stress0, state0, options)
 
     def run_stage(self, stage):
-        for record in super().run_stage(stage):
-            self.material.commit(self.committed, len(self.records))
-            yield record
+        """The solver's stage; a failure below the minimum step names the failed cells."""
+        try:
+            for record in super().run_stage(stage):
+                self.material.commit(self.committed, len(self.records))
+                yield record
+        except ConvergenceError as exc:
+            cells = self.material.failures
+            if not cells:
+                raise
+            more = f" (and {len(cells) - 3} more)" if len(cells) > 3 else ""
+            raise ConvergenceError(f"{exc}\nfailed DEM cells: " + "; ".join(cells[:3]) + more,
+                                   exc.last, exc.attempts) from None
