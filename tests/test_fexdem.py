@@ -118,3 +118,41 @@ def test_unrelaxed_cell_is_named_and_the_step_cut(sample):
     cuts = err.value.attempts
     assert len(cuts) >= 3 and cuts[-1]["dt"] == pytest.approx(scene.stage.dt_min)
     assert all("constitutive update failed" in a["reason"] for a in cuts)
+
+
+@pytest.mark.slow
+def test_dask_cluster_reproduces_serial_and_recovers_a_killed_worker(sample, tmp_path):
+    """Acceptance 3 (dask): a local cluster of 2 worker processes gives the serial numbers
+    bitwise; a worker killed while its cells run a trial is recovered (its actor restarts
+    from the cells' checkpoints on a live worker) with the same result."""
+    import os
+    import signal
+    from distributed import Client, LocalCluster
+    from contfab.fexdem.backends import DaskCells
+
+    serial = homogeneous_run(sample, lambda n: SerialCells(sample, n, NO_RELAX), steps=3)
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        plain = homogeneous_run(sample, lambda n: DaskCells(sample, n, NO_RELAX, client), steps=3)
+        np.testing.assert_array_equal(plain, serial)
+
+        class KillDuringStepTwo(DaskCells):
+            trials = 0
+
+            def _submit(self, b, method, args):
+                handle = super()._submit(b, method, args)
+                if method == "trial" and b == 0:
+                    self.trials += 1
+                    if self.trials == 4:          # the first trial of step 2
+                        addr = next(iter(client.who_has(self.actors[0][0]).values()))[0]
+                        pid = client.run(os.getpid, workers=[addr])[addr]
+                        os.kill(pid, signal.SIGKILL)
+                return handle
+        pools = []
+
+        def killing(n):
+            pools.append(KillDuringStepTwo(sample, n, NO_RELAX, client, ckdir=tmp_path))
+            return pools[-1]
+        recovered = homogeneous_run(sample, killing, steps=3)
+    assert pools[0].recoveries >= 1
+    np.testing.assert_array_equal(recovered, serial)
