@@ -156,3 +156,19 @@ def test_dask_cluster_reproduces_serial_and_recovers_a_killed_worker(sample, tmp
         recovered = homogeneous_run(sample, killing, steps=3)
     assert pools[0].recoveries >= 1
     np.testing.assert_array_equal(recovered, serial)
+
+
+def test_field_errors_are_relative_l2_norms():
+    """field_errors: zero for equal fields; a stress field scaled by (1 + a) has stress
+    error |a| and R/P error 0 (R/P is scale-free); c offset by δ gives δ/c."""
+    from contfab.fexdem.compare import field_errors
+    scene = build("shear", nx=2, ny=1, steps=1)
+    n = scene.disc.npoints
+    rng = np.random.default_rng(0)
+    stress = np.column_stack([-1 - 0.2 * rng.random(n), -1 - 0.2 * rng.random(n), 0.1 * rng.random(n)])
+    c = np.full(n, 0.8)
+    assert field_errors(scene.disc, stress, c, stress, c) == {"stress": 0.0, "R_over_P": 0.0, "c": 0.0}
+    err = field_errors(scene.disc, stress, c, 1.03 * stress, c + 0.008)
+    assert err["stress"] == pytest.approx(0.03, rel=1e-12)
+    assert err["R_over_P"] == pytest.approx(0.0, abs=1e-14)
+    assert err["c"] == pytest.approx(0.01, rel=1e-12)
