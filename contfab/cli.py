@@ -227,6 +227,52 @@ def _run_compare(args) -> None:
                            kappa=args.kappa, density=args.density))
 
 
+# --------------------------------------------------------------------------- fexdem
+
+def _add_fexdem(p: argparse.ArgumentParser) -> None:
+    from contfab.fexdem.compare import CASES
+
+    p.add_argument("case", choices=sorted(CASES), help="scene: biaxial specimen or shear layer")
+    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("--sample", default=None,
+                   help="prepared DEM sample (checkpoint of 'contfab dem prepare'); default: "
+                        "prepare one into OUT/prepared.npz with --n discs, dense (mu_prep = 0)")
+    p.add_argument("--n", type=int, default=150, help="discs per cell when preparing (default 150)")
+    p.add_argument("--params", default=None, help="model parameter TOML (default: shipped)")
+    p.add_argument("--p0", type=float, default=1.0, help="confining pressure (stress unit per P0)")
+    p.add_argument("--backend", choices=("serial", "process", "dask"), default="serial")
+    p.add_argument("--workers", type=int, default=2, help="pool processes or local dask workers")
+    p.add_argument("--address", default=None, help="dask scheduler address (default: local cluster)")
+    p.add_argument("--steps", type=int, default=None, help="load steps (default: the case's)")
+    p.add_argument("--strain", type=float, default=None, help="axial strain or shear strain")
+
+
+def _run_fexdem(args) -> None:
+    from pathlib import Path
+
+    from contfab.fexdem.compare import run
+    from contfab.params import default_params, load_params
+    from dem.job import Settings, prepare_job
+
+    sample = args.sample
+    if sample is None:
+        sample = prepare_job(Settings(n=args.n, mu_prep=0.0), Path(args.out) / "prepared.npz")
+    params = default_params() if args.params is None else load_params(args.params)
+    extra = {k: v for k, v in (("steps", args.steps), ("strain", args.strain)) if v is not None}
+    report = run(args.case, str(sample), args.out, params, p0=args.p0, backend=args.backend,
+                 workers=args.workers, address=args.address, **extra)
+    print(f"{args.case}: {report['cells']} DEM cells of {report['discs_per_cell']} discs, "
+          f"{report['elements']} {report['element']} elements")
+    for name, r in report["runs"].items():
+        err = r.get("errors")
+        tail = "" if err is None else (f", curve error {err['curve']:.3g}, stress field error "
+                                       f"{err['fields']['stress']:.3g}, FE×DEM/this cost "
+                                       f"{err['cost_ratio_dem_over_tier']:.3g}")
+        print(f"  {name:>6}: {r['wall_s']:.1f} s, {r['steps']} steps, {r['newton_iterations']} "
+              f"Newton iterations{tail}")
+    print(f"report written to {report['report']}, overlay {report['overlay']}")
+
+
 # --------------------------------------------------------------------------- bench
 
 BENCHES = {
@@ -278,6 +324,8 @@ COMMANDS = {
     "dem": (_add_dem, _run_dem, "the 2D disc-DEM RVE: prepare samples, run loading paths"),
     "case": (_add_case, _run_case, "run a boundary-value case of cases/ (or list them)"),
     "bench": (_add_bench, _run_bench, "speed and memory benchmarks"),
+    "fexdem": (_add_fexdem, _run_fexdem, "FE×DEM: a DEM cell per quadrature point, against "
+                                         "tiers 1 and 2 on the same scene"),
     "point": (_add_point, _run_point, "drive one material point along a loading path (CSV, "
                                       "JSON, PNG)"),
     "calibrate": (_add_calibrate, _run_calibrate, "fit the model tiers to a DEM campaign: "

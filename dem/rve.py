@@ -115,9 +115,15 @@ class PathRunner:
         d = state.acc - run.ref_acc
         return np.array([d[EXX], d[EYY], d[EXY]]) / d[TIME]
 
-    def start(self, state: State) -> PathRun:
-        """A fresh run at ``state`` (writes the first history row)."""
-        evaluate_forces(state, self.dyn)
+    def start(self, state: State, evaluate: bool = True) -> PathRun:
+        """A fresh run at ``state`` (writes the first history row).
+
+        ``evaluate`` recomputes the forces at the current positions and velocities;
+        ``False`` keeps the forces of the state's last step, so a state continued by
+        one path after another takes exactly the steps of one longer path.
+        """
+        if evaluate:
+            evaluate_forces(state, self.dyn)
         run = PathRun()
         self._begin_stage(state, run)
         run.rows.append(self._row(state, run))

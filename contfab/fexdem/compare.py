@@ -1,0 +1,170 @@
+"""``contfab fexdem CASE``: one scene with DEM cells and with model tiers 1 and 2.
+
+The scene (:mod:`contfab.fexdem.scenes`) runs three times from the same initial stress
+(the prepared cell's, times p0) and state (its c and fabric): FE×DEM (a DEM cell per
+quadrature point, :mod:`contfab.fexdem.material`), then tiers 1 and 2
+(:class:`contfab.fem.material.TierMaterial`, the given parameter file with p_ref = p0).
+Written into ``--out`` (atomically):
+
+    <run>_curve.csv, <run>.pvd + vtu, <run>_curve.png ...   per run (contfab.fem.analysis)
+    overlay.png        the load-displacement curves of the three runs
+    report.json        settings, N per cell, cells, wall times, Newton figures, errors, costs
+
+Errors of a tier against FE×DEM: the curve error max|y_tier - y_dem| / max|y_dem| with
+the tier's curve interpolated at the FE×DEM abscissae, and at the end of the stage the
+relative L2 field errors (quadrature-weighted) of the stress, of R/P and of c. The
+cost ratio is the FE×DEM wall time over the tier's.
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from contfab.fem import analysis
+from contfab.fem.material import TierMaterial
+from contfab.fem.solver import NewtonOptions, Solver
+from contfab.fexdem.backends import DaskCells, ProcessCells, SerialCells
+from contfab.fexdem.cell import CellOptions
+from contfab.fexdem.material import STATE_NAMES, DemMaterial, FexdemSolver
+from contfab.fexdem.scenes import build
+from contfab.models import tiers
+from contfab.params import Params
+from dem.fileio import atomic_path, write_json
+
+DEM_NEWTON = NewtonOptions(tol=5e-3, tol_stall=2e-2, max_iter=12, line_search=0, spin_step=0)
+"""FE×DEM Newton: the tolerance is set by the cells' stress noise (150 discs relaxed to an
+unbalanced force ratio of 1e-2: relative residuals stall at ~5e-3, measured on the biaxial case)."""
+
+CASES = {
+    "biaxial": dict(nx=2, ny=3, width=1.0, height=1.5, rough=True, strain=0.01, steps=20,
+                    curve=("strain", "sigma_yy")),
+    "shear": dict(nx=3, ny=1, width=3.0, height=1.0, strain=0.03, steps=20,
+                  curve=("gamma", "tau")),
+}
+
+
+def make_cells(backend: str, prepared: str, n: int, options: CellOptions, workers: int,
+               address: str | None, ckdir: Path, progress: bool):
+    """The cell backend by name: serial, process (``workers``), dask (``address`` or local)."""
+    if backend == "serial":
+        return SerialCells(prepared, n, options, ckdir, progress=progress)
+    if backend == "process":
+        return ProcessCells(prepared, n, options, workers, ckdir, progress=progress)
+    if backend == "dask":
+        from distributed import Client, LocalCluster
+        cluster = None if address else LocalCluster(n_workers=workers, threads_per_worker=1,
+                                                   dashboard_address=None)
+        client = Client(address or cluster)
+        cells = DaskCells(prepared, n, options, client, ckdir=ckdir, progress=progress)
+        cells.owned = (client, cluster)
+        return cells
+    raise ValueError(f"backend {backend!r} unknown; accepted serial, process, dask")
+
+
+def _rel_l2(w: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """sqrt(Σ w |a - b|² / Σ w |b|²) over the quadrature points (weights ``w``)."""
+    a, b = a.reshape(len(w), -1), b.reshape(len(w), -1)
+    return float(np.sqrt(np.sum(w[:, None] * (a - b) ** 2) / np.sum(w[:, None] * b ** 2)))
+
+
+def _mobilized(s: np.ndarray) -> np.ndarray:
+    """R/P per point (DESIGN §2)."""
+    return np.hypot(0.5 * (s[:, 0] - s[:, 1]), s[:, 2]) / (-0.5 * (s[:, 0] + s[:, 1]))
+
+
+def field_errors(disc, ref_stress, ref_c, stress, c) -> dict:
+    """Relative L2 errors of stress, R/P and c against the reference (FE×DEM) fields."""
+    w = disc.weights.reshape(-1)
+    return {"stress": _rel_l2(w, stress, ref_stress),
+            "R_over_P": _rel_l2(w, _mobilized(stress), _mobilized(ref_stress)),
+            "c": _rel_l2(w, c, ref_c)}
+
+
+def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1.0,
+        backend: str = "serial", workers: int = 2, address: str | None = None,
+        options: CellOptions = CellOptions(), progress: bool = True, **overrides) -> dict:
+    """Run ``case`` three ways and write the report (see the module doc); returns it."""
+    if case not in CASES:
+        raise ValueError(f"case {case!r} unknown; accepted {sorted(CASES)}")
+    cfg = dict(CASES[case], **overrides)
+    xcol, ycol = cfg.pop("curve")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    scene = build(case, p0=p0, **cfg)
+    disc = scene.disc
+    report = {"case": case, "scene": cfg, "p0": p0, "prepared": str(prepared), "elements": disc.ne,
+              "element": disc.element, "cells": disc.npoints, "backend": backend, "runs": {}}
+    curves, finals = {}, {}
+    t0 = time.perf_counter()
+    cells = make_cells(backend, prepared, disc.npoints, options, workers, address, out / "cells",
+                       progress)
+    try:
+        mat = DemMaterial(cells, disc, params, p_unit=p0, tangent="elastic")
+        solver = FexdemSolver(disc, mat, DEM_NEWTON)
+        stress0, state0 = solver.committed.stress.copy(), solver.committed.state.copy()
+        res = analysis.run(solver, [scene.stage], scene.measure,
+                           analysis.Outputs(out, f"{case}_dem", curve_axes=(xcol, ycol)), progress)
+        from dem.checkpoint import load
+        report["discs_per_cell"] = load(prepared)[0].n
+        report["cell_modulus_P0"] = mat.modulus
+        report["dem_steps_per_cell"] = {"strain": int(mat.cell_steps[0]), "relax": int(mat.cell_steps[1])}
+        report["recoveries"] = cells.recoveries
+    finally:
+        cells.close()
+        for owned in getattr(cells, "owned", ()):
+            if owned is not None:
+                owned.close()
+    report["runs"]["dem"] = _summary(res, solver, time.perf_counter() - t0)
+    curves["dem"], finals["dem"] = res, solver.committed
+    for tier in (1, 2):
+        t0 = time.perf_counter()
+        tmat = TierMaterial(params.replace("regularization", p_ref=p0), tier)
+        cols = [STATE_NAMES.index(n) for n in tiers.STATE_NAMES[tier]]
+        tsolver = Solver(disc, tmat, stress0, state0[:, cols])
+        tres = analysis.run(tsolver, [scene.stage], scene.measure,
+                            analysis.Outputs(out, f"{case}_tier{tier}", curve_axes=(xcol, ycol)),
+                            progress)
+        name = f"tier{tier}"
+        report["runs"][name] = _summary(tres, tsolver, time.perf_counter() - t0)
+        curves[name], finals[name] = tres, tsolver.committed
+        x, y = curves["dem"].column(xcol), curves["dem"].column(ycol)
+        yt = np.interp(x, tres.column(xcol), tres.column(ycol))
+        ref, fin = finals["dem"], tsolver.committed
+        report["runs"][name]["errors"] = {
+            "curve": float(np.max(np.abs(yt - y)) / np.max(np.abs(y))),
+            "fields": field_errors(disc, ref.stress, ref.state[:, STATE_NAMES.index("c")],
+                                   fin.stress, fin.state[:, tiers.STATE_NAMES[tier].index("c")]),
+            "cost_ratio_dem_over_tier": report["runs"]["dem"]["wall_s"] / report["runs"][name]["wall_s"]}
+    report["overlay"] = str(_overlay(out / "overlay.png", curves, xcol, ycol, case))
+    report["report"] = str(write_json(out / "report.json", report))
+    return report
+
+
+def _summary(res, solver, wall: float) -> dict:
+    its = [r.iterations for r in solver.records]
+    return {"wall_s": wall, "steps": len(solver.records), "newton_iterations": int(sum(its)),
+            "max_iterations": int(max(its)) if its else 0,
+            "stalled_steps": int(sum(r.stalled for r in solver.records)),
+            "final_residual_max": float(max((r.residuals[-1] for r in solver.records), default=0.0)),
+            "curve_end": {k: float(res.column(k)[-1]) for k in res.columns[4:]} if res.rows else {}}
+
+
+def _overlay(path: Path, curves: dict, xcol: str, ycol: str, case: str) -> Path:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for name, res in curves.items():
+        ax.plot(res.column(xcol), res.column(ycol), "o-" if name == "dem" else "-", ms=3,
+                label="FE×DEM" if name == "dem" else name.replace("tier", "tier "))
+    ax.set_xlabel(xcol)
+    ax.set_ylabel(f"{ycol} (stress unit p0)")
+    ax.set_title(f"{case}: FE×DEM and the model tiers")
+    ax.legend()
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=120)
+    plt.close(fig)
+    return path

@@ -1,0 +1,160 @@
+"""The FEM material "tier" ``dem``: one DEM cell per quadrature point (issue 8).
+
+:class:`DemMaterial` follows the solver's update contract
+(:class:`contfab.fem.solver.Material`): ``update(stress_n, state_n, dstrain, dspin)``
+sends each cell its increment (:mod:`contfab.fexdem.cell`) through a cell backend
+(:mod:`contfab.fexdem.backends`) and returns
+
+* stress: the cell's Love–Weber stress times ``p_unit`` (the scene's stress per P0;
+  cells are prepared at P0 = 1), tension positive;
+* state (gp, c, A, Bc, Bs): c and the fabric measured in the cell; gp accumulates the
+  total deviatoric strain Σ sqrt((Δεxx - Δεyy)² + Δγxy²) (the DEM has no elastic/
+  plastic split; the column keeps the solver's outputs uniform across tiers);
+* tangent: the calibrated continuum model's algorithmic tangent (``tangent_tier`` 1
+  or 2) at the same committed stress and state, over the same increment, with the
+  regularization stiffness replaced by the cell's measured elastic modulus (the DEM
+  cell is stiffer than the default λ; a tangent softer than the material makes the
+  quasi-Newton iteration overshoot). Where that model fails, its elastic tangent.
+  ``tangent="elastic"`` uses that elastic tangent everywhere (a stiff secant: the
+  iteration contracts at ~1 - E_DEM/E per iteration). Measured on a dense 150-disc
+  cell with the shipped (uncalibrated) parameters: the tier-1 tangent diverged at the
+  first step (tier 1 yields at R/P = sin φ where the cell is still elastic), the
+  elastic one converged (residual halved per iteration);
+* status: the model's status at that state (0 elastic, 1 plastic, ...), -1 for a
+  cell that did not reach equilibrium: its error, naming the element, the quadrature
+  point and the position, is kept in :attr:`DemMaterial.failures` and the solver
+  cuts the step.
+
+Trials never touch the committed cells: :meth:`commit` (called by
+:class:`FexdemSolver` after each converged step) promotes the latest trial, which must
+be the one the solver accepted. The solver therefore runs without line search and
+without the spin-tangent difference (one update per Newton iteration, the accepted
+one last): :class:`FexdemSolver` enforces both.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver
+from contfab.fexdem.cell import CellOptions, advance_cell, measure_cell, start_cell
+from contfab.models import tiers
+from contfab.params import Params
+from contfab.tensors import isotropic_stiffness
+from dem import checkpoint
+
+STATE_NAMES = ("gp", "c", "A", "Bc", "Bs")
+TANGENTS = ("model", "elastic")
+PROBE_STRAIN = 1e-5
+"""Strain of the one-off probe that measures a cell's elastic modulus."""
+
+
+def elastic_modulus(prepared: str) -> float:
+    """E = Δσxx/Δεxx of the prepared cell under a small uniaxial strain (units of P0).
+
+    For the isotropic regularization with ν = 0 (K = G = E/2) a uniaxial strain Δεxx
+    gives Δσxx = (K + G) Δεxx = E Δεxx, so E is the matching λ·p_ref.
+    """
+    state, dyn, _, _ = checkpoint.load(prepared)
+    s0, _ = measure_cell(start_cell(state, dyn))
+    res = advance_cell(state, dyn, (-PROBE_STRAIN, 0.0, 0.0), 0.0,
+                       CellOptions(force_tol=np.inf, kinetic_tol=np.inf))
+    return float((res.stress[0] - s0[0]) / -PROBE_STRAIN)
+
+
+class DemMaterial:
+    """DEM cells at the points of ``disc`` run by ``cells`` (see the module doc)."""
+
+    state_names = STATE_NAMES
+
+    def __init__(self, cells, disc, params: Params, p_unit: float = 1.0, tangent_tier: int = 1,
+                 modulus: float | None = None, tangent: str = "model"):
+        if tangent not in TANGENTS:
+            raise ValueError(f"tangent = {tangent!r} unknown; accepted {TANGENTS}")
+        self.tangent = tangent
+        if not (np.isfinite(p_unit) and p_unit > 0):
+            raise ValueError(f"p_unit = {p_unit} out of range; accepted (0, inf) (stress per P0)")
+        if tangent_tier not in (1, 2):
+            raise ValueError(f"tangent_tier = {tangent_tier} out of range; accepted 1 or 2")
+        if cells.n != disc.npoints:
+            raise ValueError(f"{cells.n} cells for {disc.npoints} quadrature points")
+        self.cells, self.disc, self.p_unit = cells, disc, float(p_unit)
+        self.modulus = elastic_modulus(cells.prepared) if modulus is None else float(modulus)
+        self.params = params.with_tier(tangent_tier).replace(
+            "regularization", lam=self.modulus, p_ref=self.p_unit, nu=0.0)
+        self.tangent_tier = tangent_tier
+        self._elastic = isotropic_stiffness(*self.params.regularization.moduli())
+        self._cols = [STATE_NAMES.index(n) for n in tiers.STATE_NAMES[tangent_tier]]
+        self.failures: list[str] = []
+        self.last = None
+        self.cell_steps = np.zeros(2, np.int64)
+
+    def initial(self) -> tuple[np.ndarray, np.ndarray]:
+        """(stress (n, 3), state (n, 5)) of the prepared sample at every point."""
+        state, dyn, _, _ = checkpoint.load(self.cells.prepared)
+        stress, cell_state = measure_cell(start_cell(state, dyn))
+        n = self.disc.npoints
+        return (np.tile(stress * self.p_unit, (n, 1)),
+                np.tile(np.concatenate([[0.0], cell_state]), (n, 1)))
+
+    def where(self, k: int) -> str:
+        """Element, quadrature point and position of point ``k`` (for messages)."""
+        e, q = divmod(int(k), self.disc.nq)
+        x, y = self.disc.points[k]
+        return f"element {e}, quadrature point {q} at (x, y) = ({x:.4g}, {y:.4g})"
+
+    def update(self, stress_n, state_n, dstrain, dspin) -> tiers.UpdateResult:
+        stress_n = np.ascontiguousarray(stress_n, dtype=float)
+        state_n = np.ascontiguousarray(state_n, dtype=float)
+        dstrain = np.ascontiguousarray(dstrain, dtype=float)
+        dspin = np.ascontiguousarray(dspin, dtype=float)
+        out = self.cells.trial(dstrain, dspin)
+        model = tiers.update(self.tangent_tier, stress_n, state_n[:, self._cols], dstrain, dspin,
+                             self.params)
+        tangent = model.tangent.copy() if self.tangent == "model" else np.tile(self._elastic, (len(dspin), 1, 1))
+        status = np.where(model.status < 0, 0, model.status).astype(np.int8)
+        tangent[model.status < 0] = self._elastic
+        stress = out["stress"] * self.p_unit
+        dgp = np.hypot(dstrain[:, 0] - dstrain[:, 1], dstrain[:, 2])
+        state = np.column_stack([state_n[:, 0] + dgp, out["state"]])
+        bad = ~out["ok"]
+        if np.any(bad):
+            stress[bad], state[bad], status[bad] = stress_n[bad], state_n[bad], -1
+            self.failures = [f"DEM cell at {self.where(k)}: {msg}"
+                             for k, msg in sorted(out["errors"].items())]
+        self.cell_steps += out["steps"][out["ok"]].sum(axis=0)
+        self.last = tiers.UpdateResult(stress, state, tangent, status)
+        return self.last
+
+    def commit(self, accepted, fe_step: int) -> None:
+        """Promote the cells' latest trial, which must be the solver's ``accepted`` state."""
+        if self.last is None or accepted.stress is not self.last.stress:
+            raise RuntimeError("the converged step is not the latest trial of the DEM cells "
+                               "(line search or spin differences enabled?)")
+        self.cells.commit(fe_step)
+        self.failures = []
+
+
+class FexdemSolver(Solver):
+    """The FEM solver with DEM cells: commits the cells after every converged step."""
+
+    def __init__(self, disc, material: DemMaterial, options: NewtonOptions):
+        if options.line_search != 0 or options.spin_step != 0:
+            raise ValueError(f"FE×DEM needs line_search = 0 and spin_step = 0 (each trial is a "
+                             f"DEM run; the accepted one must be the last), got "
+                             f"{options.line_search} and {options.spin_step}")
+        stress0, state0 = material.initial()
+        super().__init__(disc, material, stress0, state0, options)
+
+    def run_stage(self, stage):
+        """The solver's stage; a failure below the minimum step names the failed cells."""
+        try:
+            for record in super().run_stage(stage):
+                self.material.commit(self.committed, len(self.records))
+                yield record
+        except ConvergenceError as exc:
+            cells = self.material.failures
+            if not cells:
+                raise
+            more = f" (and {len(cells) - 3} more)" if len(cells) > 3 else ""
+            raise ConvergenceError(f"{exc}\nfailed DEM cells: " + "; ".join(cells[:3]) + more,
+                                   exc.last, exc.attempts) from None

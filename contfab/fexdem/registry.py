@@ -1,0 +1,93 @@
+"""The cells one worker owns: committed states, the latest trial of each, checkpoints.
+
+A :class:`CellRegistry` lives where its cells run (in-process, in a worker process of
+a :class:`~contfab.fexdem.backends.ProcessCells` pool, or as a dask actor), so particle
+arrays never travel between steps: only strain increments go in and stresses come out.
+
+* :meth:`trial` runs an increment on a *copy* of each cell's committed state and keeps
+  that copy as the cell's trial (replacing the previous trial); the committed state is
+  untouched, so any number of Newton iterations leave no trace.
+* :meth:`commit` promotes the trials of a converged step and writes each cell's
+  committed state to ``ckdir/cell_<id>.npz`` (:func:`dem.checkpoint.save`, atomic),
+  tagged with the step number. A registry made with ``resume=True`` starts from those
+  files, so a lost worker's cells restart from their last converged step.
+
+A cell that fails (no equilibrium within its budget, a DEM divergence) reports its
+message instead of a stress; the caller turns it into a failed point.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from dem import checkpoint
+from dem.integrator import DivergenceError
+from contfab.fexdem.cell import CELL_STATE, CellNotRelaxed, CellOptions, advance_cell, start_cell
+
+
+def cell_file(ckdir: str | Path, cell: int) -> Path:
+    return Path(ckdir) / f"cell_{cell:06d}.npz"
+
+
+class CellRegistry:
+    """Cells ``ids`` cloned from the prepared sample ``prepared`` (see the module doc)."""
+
+    def __init__(self, prepared: str, ids, options: CellOptions, ckdir: str | None = None,
+                 resume: bool = False):
+        self.ids = [int(i) for i in ids]
+        self.options = options
+        self.ckdir = ckdir
+        state, self.dyn, _, _ = checkpoint.load(prepared)
+        self.committed, self.step = {}, {}
+        for i in self.ids:
+            f = cell_file(ckdir, i) if ckdir is not None else None
+            if resume and f is not None and f.exists():
+                self.committed[i], _, _, meta = checkpoint.load(f)
+                self.step[i] = int(meta["fe_step"])
+            else:
+                self.committed[i], self.step[i] = start_cell(state.copy(), self.dyn), 0
+        self.trials: dict = {}
+
+    def steps(self) -> dict[int, int]:
+        """The converged FE step each cell's committed state belongs to."""
+        return dict(self.step)
+
+    def trial(self, ids, dstrain: np.ndarray, dspin: np.ndarray) -> dict:
+        """Run one increment per cell on a copy of its committed state.
+
+        Returns arrays over ``ids``: ``stress`` (k, 3) in P0, ``state`` (k, 4) (c, A, Bc,
+        Bs), ``steps`` (k, 2) (strain, relaxation steps), ``ok`` (k,) bool, and
+        ``errors`` {position in ids: message}.
+        """
+        k = len(ids)
+        out = {"stress": np.zeros((k, 3)), "state": np.zeros((k, len(CELL_STATE))),
+               "steps": np.zeros((k, 2), np.int64), "ok": np.ones(k, bool), "errors": {}}
+        for j, i in enumerate(ids):
+            st = self.committed[int(i)].copy()
+            try:
+                res = advance_cell(st, self.dyn, dstrain[j], float(dspin[j]), self.options)
+            except (CellNotRelaxed, DivergenceError) as exc:
+                out["ok"][j] = False
+                out["errors"][j] = str(exc)
+                self.trials.pop(int(i), None)
+                continue
+            self.trials[int(i)] = st
+            out["stress"][j], out["state"][j] = res.stress, res.state
+            out["steps"][j] = (res.strain_steps, res.relax_steps)
+        return out
+
+    def commit(self, fe_step: int) -> None:
+        """Promote every cell's latest trial and checkpoint it as step ``fe_step``."""
+        missing = [i for i in self.ids if i not in self.trials]
+        if missing:
+            raise RuntimeError(f"commit of step {fe_step} without a trial for cells {missing[:5]}")
+        for i in self.ids:
+            self.committed[i] = self.trials.pop(i)
+            self.step[i] = fe_step
+            if self.ckdir is not None:
+                checkpoint.save(cell_file(self.ckdir, i), self.committed[i], self.dyn, None,
+                                {"fe_step": fe_step, "cell": i})
+
+    def ping(self) -> int:
+        return len(self.ids)

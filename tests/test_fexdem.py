@@ -1,0 +1,174 @@
+"""FE×DEM (issue 8): DEM cells at the quadrature points of the FEM solver."""
+import numpy as np
+import pytest
+
+from contfab.fem.solver import ConvergenceError, NewtonOptions
+from contfab.fexdem.backends import ProcessCells, SerialCells
+from contfab.fexdem.cell import CellOptions, increment_gradient, increment_stage
+from contfab.fexdem.material import DemMaterial, FexdemSolver
+from contfab.fexdem.scenes import build
+from contfab.params import default_params
+from dem import checkpoint
+from dem.contact_law import ContactLaw
+from dem.integrator import dynamics
+from dem.paths import Path
+from dem.rve import PathRunner
+
+from conftest import prepared
+
+NO_RELAX = CellOptions(force_tol=np.inf, kinetic_tol=np.inf)
+NEWTON = NewtonOptions(tol=2e-3, tol_stall=5e-3, max_iter=12, line_search=0, spin_step=0)
+
+
+@pytest.fixture(scope="session")
+def sample(tmp_path_factory):
+    """A dense 150-disc cell (μ_prep = 0, κ = 1e3, P0 = 1) tested at μ = 0.5, I = 1e-3."""
+    st = prepared(150, 0.0, seed=2)
+    dyn = dynamics(ContactLaw(kn=1e3, e=0.5, mu=0.5), st.mass.min(), 1e-3)
+    return checkpoint.save(tmp_path_factory.mktemp("fexdem") / "dense150.npz", st, dyn)
+
+
+def run_scene(scene, cells, **kw):
+    """(solver, committed u and stress after each step) of one scene with DEM cells."""
+    mat = DemMaterial(cells, scene.disc, default_params(), p_unit=scene.p0, tangent="elastic", **kw)
+    solver = FexdemSolver(scene.disc, mat, NEWTON)
+    us, stresses = [solver.committed.u.copy()], [solver.committed.stress.copy()]
+    for _ in solver.run_stage(scene.stage):
+        us.append(solver.committed.u.copy())
+        stresses.append(solver.committed.stress.copy())
+    return solver, us, np.array(stresses)
+
+
+def test_homogeneous_biaxial_matches_standalone_cell(sample):
+    """Acceptance 1: one element, smooth platens, σxx = -p0 held by a dead load: each
+    point's converged stresses equal a stand-alone DEM cell run through the same strain
+    increments as one path (dem.rve.PathRunner), to round-off; the lateral stress is -p0
+    within the Newton tolerance; the stress unit scales."""
+    p0 = 2.5
+    scene = build("biaxial", p0=p0, strain=6e-4, steps=3, rough=False)
+    with SerialCells(sample, scene.disc.npoints, NO_RELAX) as cells:
+        solver, us, stresses = run_scene(scene, cells)
+    assert len(us) == 4
+    for k in range(scene.disc.npoints):
+        incs = [tuple(x[k] for x in scene.disc.strain(b - a)) for a, b in zip(us, us[1:])]
+        state, dyn, _, _ = checkpoint.load(sample)
+        stages = tuple(increment_stage(increment_gradient(de, dw), dyn, f"step{j}")
+                       for j, (de, dw) in enumerate(incs))
+        runner = PathRunner(Path("standalone", stages), dyn, dyn.gdot_ref)
+        run = runner.run(state, runner.start(state))
+        ends = {r["stage"]: r for r in run.rows[1:]}          # the last row of each stage
+        ref = np.array([[ends[j][q] for q in ("sxx", "syy", "sxy")] for j in range(3)])
+        np.testing.assert_allclose(stresses[1:, k] / p0, ref, rtol=0, atol=1e-12)
+        assert abs(run.rows[-1]["c"] - solver.committed.state[k, 1]) < 1e-12
+    # the axial stress rose well above p0; the lateral one is -p0 within the accepted
+    # Newton residual (relative 5e-3, set by the 150-disc cells' stress noise)
+    assert solver.committed.stress[:, 1].mean() < -1.3 * p0
+    assert all(r.residuals[-1] <= NEWTON.tol_stall for r in solver.records)
+    assert abs(solver.committed.stress[:, 0].mean() / -p0 - 1) < 1e-2
+    np.testing.assert_allclose(solver.committed.stress[:, 0], -p0, rtol=2e-2)
+
+
+def homogeneous_run(sample, cells_of, steps=2):
+    """Stresses of the one-element smooth biaxial scene with cells from ``cells_of(n)``."""
+    scene = build("biaxial", strain=2e-4 * steps, steps=steps, rough=False)
+    with cells_of(scene.disc.npoints) as cells:
+        _, _, stresses = run_scene(scene, cells)
+    return stresses
+
+
+def test_process_pool_reproduces_serial_and_recovers_a_killed_process(sample, tmp_path):
+    """Acceptance 3 (pool part): two spawned processes give the serial numbers bitwise,
+    also when one is killed between steps (its cells restart from their checkpoints)."""
+    serial = homogeneous_run(sample, lambda n: SerialCells(sample, n, NO_RELAX))
+    pooled = homogeneous_run(sample, lambda n: ProcessCells(sample, n, NO_RELAX, workers=2))
+    np.testing.assert_array_equal(pooled, serial)
+
+    class KillAfterFirstCommit(ProcessCells):
+        def commit(self, fe_step):
+            super().commit(fe_step)
+            if fe_step == 1:
+                self.procs[0].kill()
+                self.procs[0].join()
+    pools = []
+
+    def killing(n):
+        pools.append(KillAfterFirstCommit(sample, n, NO_RELAX, workers=2, ckdir=tmp_path))
+        return pools[-1]
+    recovered = homogeneous_run(sample, killing)
+    assert pools[0].recoveries == 1
+    np.testing.assert_array_equal(recovered, serial)
+    assert len(list(tmp_path.glob("cell_*.npz"))) == 4
+
+
+def test_unrelaxed_cell_is_named_and_the_step_cut(sample):
+    """Acceptance 4: a cell without equilibrium within its budget fails the update with
+    its element, quadrature point and position; the solver cuts the step to its minimum."""
+    from dem.prepare import unbalanced_force_ratio
+    from contfab.fexdem.cell import start_cell
+    state, dyn, _, _ = checkpoint.load(sample)
+    f0 = unbalanced_force_ratio(start_cell(state, dyn), dyn.law)
+    strict = CellOptions(force_tol=1.5 * f0, kinetic_tol=np.inf, relax_budget=0)
+    scene = build("biaxial", strain=2e-4, steps=1, rough=False)
+    with SerialCells(sample, scene.disc.npoints, strict) as cells:
+        with pytest.raises(ConvergenceError) as err:
+            run_scene(scene, cells)
+    msg = str(err.value)
+    assert "failed DEM cells: DEM cell at element 0, quadrature point 0 at (x, y) = (" in msg
+    assert "no quasi-static equilibrium after 0 relaxation steps" in msg
+    cuts = err.value.attempts
+    assert len(cuts) >= 3 and cuts[-1]["dt"] == pytest.approx(scene.stage.dt_min)
+    assert all("constitutive update failed" in a["reason"] for a in cuts)
+
+
+@pytest.mark.slow
+def test_dask_cluster_reproduces_serial_and_recovers_a_killed_worker(sample, tmp_path):
+    """Acceptance 3 (dask): a local cluster of 2 worker processes gives the serial numbers
+    bitwise; a worker killed while its cells run a trial is recovered (its actor restarts
+    from the cells' checkpoints on a live worker) with the same result."""
+    import os
+    import signal
+    from distributed import Client, LocalCluster
+    from contfab.fexdem.backends import DaskCells
+
+    serial = homogeneous_run(sample, lambda n: SerialCells(sample, n, NO_RELAX), steps=3)
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        plain = homogeneous_run(sample, lambda n: DaskCells(sample, n, NO_RELAX, client), steps=3)
+        np.testing.assert_array_equal(plain, serial)
+
+        class KillDuringStepTwo(DaskCells):
+            trials = 0
+
+            def _submit(self, b, method, args):
+                handle = super()._submit(b, method, args)
+                if method == "trial" and b == 0:
+                    self.trials += 1
+                    if self.trials == 4:          # the first trial of step 2
+                        addr = next(iter(client.who_has(self.actors[0][0]).values()))[0]
+                        pid = client.run(os.getpid, workers=[addr])[addr]
+                        os.kill(pid, signal.SIGKILL)
+                return handle
+        pools = []
+
+        def killing(n):
+            pools.append(KillDuringStepTwo(sample, n, NO_RELAX, client, ckdir=tmp_path))
+            return pools[-1]
+        recovered = homogeneous_run(sample, killing, steps=3)
+    assert pools[0].recoveries >= 1
+    np.testing.assert_array_equal(recovered, serial)
+
+
+def test_field_errors_are_relative_l2_norms():
+    """field_errors: zero for equal fields; a stress field scaled by (1 + a) has stress
+    error |a| and R/P error 0 (R/P is scale-free); c offset by δ gives δ/c."""
+    from contfab.fexdem.compare import field_errors
+    scene = build("shear", nx=2, ny=1, steps=1)
+    n = scene.disc.npoints
+    rng = np.random.default_rng(0)
+    stress = np.column_stack([-1 - 0.2 * rng.random(n), -1 - 0.2 * rng.random(n), 0.1 * rng.random(n)])
+    c = np.full(n, 0.8)
+    assert field_errors(scene.disc, stress, c, stress, c) == {"stress": 0.0, "R_over_P": 0.0, "c": 0.0}
+    err = field_errors(scene.disc, stress, c, 1.03 * stress, c + 0.008)
+    assert err["stress"] == pytest.approx(0.03, rel=1e-12)
+    assert err["R_over_P"] == pytest.approx(0.0, abs=1e-14)
+    assert err["c"] == pytest.approx(0.01, rel=1e-12)
