@@ -175,6 +175,29 @@ def _run_bench(args) -> None:
     print_figures(f"contfab bench {args.name}", figures, args.json)
 
 
+# --------------------------------------------------------------------------- tradeoff
+
+def _add_tradeoff(p: argparse.ArgumentParser) -> None:
+    from contfab.tradeoff import STUDIES
+    from contfab.tradeoff.study import EXECUTORS
+
+    p.add_argument("study", choices=[*STUDIES, "all"], help="which study ('all': every one, "
+                                                          "and DIR/tradeoff.md)")
+    p.add_argument("--out", required=True, help="output directory (points are reused on rerun)")
+    p.add_argument("--fast", action="store_true", help="the small preset the test suite runs")
+    p.add_argument("--executor", choices=sorted(EXECUTORS), default="serial",
+                   help="how the points run (default serial)")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
+def _run_tradeoff(args) -> None:
+    from contfab.tradeoff import run
+
+    written = run(args.study, args.out, args.fast, args.executor, progress=not args.quiet)
+    for what, f in written.items():
+        print(f"{what:>24}: {f}")
+
+
 COMMANDS = {
     "paths": (_add_paths, _run_paths, "list the standard loading paths, or show one"),
     "dem": (_add_dem, _run_dem, "the 2D disc-DEM RVE: prepare samples, run loading paths"),
@@ -182,6 +205,8 @@ COMMANDS = {
     "bench": (_add_bench, _run_bench, "speed and memory benchmarks"),
     "point": (_add_point, _run_point, "drive one material point along a loading path (CSV, "
                                       "JSON, PNG)"),
+    "tradeoff": (_add_tradeoff, _run_tradeoff, "speed against accuracy studies (CSV, PNG, "
+                                               "Markdown)"),
 }
 
 

@@ -1,0 +1,52 @@
+"""Trade-off studies: the machinery (front, resume, files) and each study's --fast shape."""
+import numpy as np
+import pytest
+
+from contfab.cli import main
+from contfab.tradeoff import load_study, run
+from contfab.tradeoff.study import StudyError, pareto_front, point_key, run_study
+
+
+def _row(t, e):
+    return {"knobs": {}, "wall_s": t, "cost": t, "errors": {"x": e}}
+
+
+def test_pareto_front_keeps_only_undominated_rows():
+    rows = [_row(1, 1.0), _row(2, 0.5), _row(3, 0.6), _row(4, 0.1), _row(0.5, 2.0),
+            _row(2, 0.5)]
+    # (3, 0.6) is beaten by (2, 0.5); equal rows do not dominate each other
+    assert pareto_front(rows) == [True, True, False, True, True, True]
+
+
+def test_point_key_is_stable_and_distinguishes_points():
+    assert point_key({"a": 1.0, "b": 2}) == point_key({"b": 2, "a": 1.0})
+    assert point_key({"a": 1.0}) != point_key({"a": 1.0000001})
+
+
+def test_unknown_study_or_executor_is_a_clean_error(tmp_path):
+    with pytest.raises(StudyError, match="unknown study 'nope'; available: point_increment"):
+        load_study("nope", True)
+    with pytest.raises(StudyError, match="executor = 'nope' is not available; accepted: serial"):
+        run_study(load_study("point_increment", True), tmp_path, executor="nope")
+
+
+def test_point_increment_fast_is_first_order_resumable_and_writes_files(tmp_path, capsys):
+    assert main(["tradeoff", "point_increment", "--fast", "--quiet", "--out", str(tmp_path)]) == 0
+    folder = tmp_path / "point_increment"
+    table = np.genfromtxt(folder / "point_increment.csv", delimiter=",", names=True)
+    # error halves with the increment (first-order driver; Richardson reference): the
+    # fitted order is 1 within 0.15, and the finest run is the most accurate
+    h, err = table["increment"], table["error_RP"]
+    order = np.polyfit(np.log(h), np.log(err), 1)[0]
+    assert abs(order - 1.0) < 0.15
+    assert err[np.argmin(h)] == err.min() and table["error"].min() < 1e-3
+    assert (folder / "point_increment.png").stat().st_size > 10_000
+    md = (folder / "point_increment.md").read_text()
+    assert "| increment | wall s |" in md and "Richardson" in md
+    # a rerun reuses every point file: same numbers, no point recomputed
+    stamp = {f.name: f.stat().st_mtime_ns for f in (folder / "points").glob("*.json")}
+    assert len(stamp) == 4
+    assert main(["tradeoff", "point_increment", "--fast", "--quiet", "--out", str(tmp_path)]) == 0
+    assert {f.name: f.stat().st_mtime_ns for f in (folder / "points").glob("*.json")} == stamp
+    again = np.genfromtxt(folder / "point_increment.csv", delimiter=",", names=True)
+    assert np.array_equal(again["error"], table["error"])
