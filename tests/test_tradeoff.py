@@ -50,3 +50,46 @@ def test_point_increment_fast_is_first_order_resumable_and_writes_files(tmp_path
     assert {f.name: f.stat().st_mtime_ns for f in (folder / "points").glob("*.json")} == stamp
     again = np.genfromtxt(folder / "point_increment.csv", delimiter=",", names=True)
     assert np.array_equal(again["error"], table["error"])
+
+
+def _table(folder, name):
+    return np.genfromtxt(folder / name / f"{name}.csv", delimiter=",", names=True)
+
+
+@pytest.fixture(scope="module")
+def dem_fast(tmp_path_factory):
+    """The three DEM studies at --fast (N = 64..256, I = 1e-1..1e-2, κ = 1e2..1e4)."""
+    out = tmp_path_factory.mktemp("dem")
+    for name in ("dem_size", "dem_inertial", "dem_stiffness"):
+        run(name, out, fast=True, progress=False)
+    return out
+
+
+def test_dem_size_fast_scatter_falls_with_n(dem_fast):
+    t = _table(dem_fast, "dem_size")
+    assert list(t["n"]) == [64, 128, 256]
+    # fluctuations of every steady-state quantity shrink from N = 64 to N = 256 (expected
+    # by a factor 2 for N^-1/2; measured 1.5-2.5 at this size, 2 seeds, 13 rows each)
+    for q in ("RP", "c", "z", "A", "B"):
+        assert t[f"error_{q}"][-1] < 0.85 * t[f"error_{q}"][0], q
+    md = (dem_fast / "dem_size" / "dem_size.md").read_text()
+    assert "beta (row scatter of RP ∝ N^-beta)" in md and "±" in md
+
+
+def test_dem_inertial_fast_error_falls_with_cost_toward_the_quasi_static_limit(dem_fast):
+    t = _table(dem_fast, "dem_inertial")
+    order = np.argsort(t["inertial"])          # slowest (most costly) first
+    err, cost = t["error_RP"][order], t["cost"][order]
+    # I = 1e-1 is far from quasi-static: R/P off by tens of percent, c by ~5 %; the error
+    # falls monotonically as I falls and the cost per unit strain rises
+    assert np.all(np.diff(err) > 0) and np.all(np.diff(cost) < 0)
+    assert err[-1] > 0.2 and t["error_c"][order][-1] > 0.02
+
+
+def test_dem_stiffness_fast_error_falls_with_cost_toward_the_rigid_limit(dem_fast):
+    t = _table(dem_fast, "dem_stiffness")
+    order = np.argsort(t["kappa"])[::-1]       # stiffest (most costly) first
+    # soft contacts overlap: c is ~4 % too high at κ = 100, below 0.5 % at κ >= 1e3;
+    # the time step ∝ κ^-1/2 makes the stiff runs the costly ones
+    assert np.all(np.diff(t["error_c"][order]) > 0) and np.all(np.diff(t["cost"][order]) < 0)
+    assert t["error_c"][order][-1] > 0.02 and t["error_c"][order][0] < 0.005
