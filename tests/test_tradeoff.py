@@ -8,7 +8,7 @@ from contfab.tradeoff.study import StudyError, pareto_front, point_key, run_stud
 
 
 def _row(t, e):
-    return {"knobs": {}, "wall_s": t, "cost": t, "errors": {"x": e}}
+    return {"knobs": {}, "wall_s": 2 * t, "cpu_s": t, "cost": t, "errors": {"x": e}}
 
 
 def test_pareto_front_keeps_only_undominated_rows():

@@ -1,8 +1,8 @@
-"""Files of a study: the table (CSV), error against wall time (PNG), a Markdown summary.
+"""Files of a study: the table (CSV), error against CPU time (PNG), a Markdown summary.
 
-``DIR/NAME.csv``: one row per table row of the study: knobs, wall time (s), cost, every
+``DIR/NAME.csv``: one row per table row of the study: knobs, wall and CPU time (s), cost, every
 error, the combined error (the largest), ``pareto`` (1 on the front) and ``default``.
-``DIR/NAME.png``: combined error against wall time, log-log, every row as a dot, the
+``DIR/NAME.png``: combined error against CPU time, log-log, every row as a dot, the
 Pareto front as a line, the default setting as a star.
 ``DIR/NAME.md``: what the study measures, its table and its notes.
 """
@@ -19,24 +19,24 @@ from dem.fileio import atomic_path, write_csv
 def table(study: Study, rows: list[dict]) -> tuple[tuple[str, ...], list[list]]:
     """(columns, rows) of the CSV table (module doc)."""
     front = pareto_front(rows)
-    cols = (*study.knobs, "wall_s", "cost", *(f"error_{q}" for q in study.quantities),
+    cols = (*study.knobs, "wall_s", "cpu_s", "cost", *(f"error_{q}" for q in study.quantities),
             "error", "pareto", "default")
     out = []
     for r, f in zip(rows, front):
-        out.append([r["knobs"][k] for k in study.knobs] + [r["wall_s"], r["cost"]]
+        out.append([r["knobs"][k] for k in study.knobs] + [r["wall_s"], r["cpu_s"], r["cost"]]
                    + [r["errors"].get(q, math.nan) for q in study.quantities]
                    + [combined_error(r), int(f), int(is_default(study, r))])
     return cols, out
 
 
 def plot(study: Study, rows: list[dict], path: Path) -> Path:
-    """Combined error against wall time, log-log, front and default marked."""
+    """Combined error against CPU time, log-log, front and default marked."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     front = pareto_front(rows)
-    t = [r["wall_s"] for r in rows]
+    t = [r["cpu_s"] for r in rows]
     e = [combined_error(r) for r in rows]
     fig, ax = plt.subplots(figsize=(6, 4.2))
     ax.loglog(t, e, "o", color="0.6", label="settings")
@@ -49,7 +49,7 @@ def plot(study: Study, rows: list[dict], path: Path) -> Path:
     d = [(ti, ei) for r, ti, ei in zip(rows, t, e) if is_default(study, r)]
     if d:
         ax.loglog(*zip(*d), "*", color="C3", markersize=14, label="default")
-    ax.set_xlabel("wall time per point (s)")
+    ax.set_xlabel("CPU time per point (s, one thread)")
     ax.set_ylabel(f"error ({study.error_meaning})")
     ax.set_title(f"{study.name}: {study.description}", fontsize=8)
     ax.legend(fontsize=7)
@@ -70,8 +70,8 @@ def markdown(study: Study, rows: list[dict], notes: dict, png_name: str | None =
     cols, data = table(study, rows)
     lines = [f"## {study.name}", "", study.description, "",
              f"Error: {study.error_meaning}. Cost: {study.cost_unit}. "
-             f"Front: not beaten in both wall time and error; ★ the default setting.", ""]
-    head = [*study.knobs, "wall s", "cost", *study.quantities, "error", "front"]
+             f"Front: not beaten in both CPU time and error; ★ the default setting.", ""]
+    head = [*study.knobs, "wall s", "CPU s", "cost", *study.quantities, "error", "front"]
     lines.append("| " + " | ".join(head) + " |")
     lines.append("|" + "---|" * len(head))
     for row in data:

@@ -5,10 +5,13 @@ the runner needs), names the runner ``run_point(study, point) -> dict`` and the
 evaluation ``evaluate(study, points, results) -> (rows, notes)``. Runners are plain
 module-level functions, so a point can run in another process or on a dask worker.
 
-A runner returns ``{"values": {...}, "wall_s": seconds, "cost": cost in study.cost_unit}``:
-measured quantities, not errors. Errors need the whole study (a converged run, an
+A runner returns ``{"values": {...}, "wall_s": s, "cpu_s": s, "cost": cost in
+study.cost_unit}``: measured quantities, not errors, and the wall and CPU time of the
+timed work (:class:`Clock`). The runs are single-threaded, and on a shared machine the CPU
+time of this process is the reproducible figure (the wall time of the same run varied 10x
+under load), so the front and the cost use CPU time; the tables list both. Errors need the whole study (a converged run, an
 extrapolated limit, a spread across seeds), so :attr:`Study.evaluate` turns all the
-results into table rows ``{"knobs": {...}, "wall_s", "cost", "errors": {quantity: e}}``
+results into table rows ``{"knobs": {...}, "wall_s", "cpu_s", "cost", "errors": {q: e}}``
 (errors dimensionless, >= 0) and notes (fitted exponents, limits) for the summary.
 The combined error of a row is the largest of its errors (:func:`combined_error`).
 
@@ -21,6 +24,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Sequence
@@ -49,6 +53,18 @@ class Study:
     settings: dict = field(default_factory=dict)
 
 
+class Clock:
+    """Wall and CPU time of this process over a ``with`` block (``.wall``, ``.cpu`` in s)."""
+
+    def __enter__(self) -> "Clock":
+        self._w, self._c = time.perf_counter(), time.process_time()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.wall = time.perf_counter() - self._w
+        self.cpu = time.process_time() - self._c
+
+
 def point_key(point: dict) -> str:
     """A stable file name for a point: readable knob values and a short content hash."""
     text = json.dumps(point, sort_keys=True, default=str)
@@ -66,8 +82,8 @@ def combined_error(row: dict) -> float:
 
 def pareto_front(rows: Sequence[dict]) -> list[bool]:
     """Whether each row is on the front: no other row is at most as costly *and* at most
-    as wrong, being strictly better in one (cost = wall time, error = combined)."""
-    pts = [(r["wall_s"], combined_error(r)) for r in rows]
+    as wrong, being strictly better in one (cost = CPU time, error = combined)."""
+    pts = [(r["cpu_s"], combined_error(r)) for r in rows]
     front = []
     for i, (t, e) in enumerate(pts):
         dominated = math.isnan(e) or any(
@@ -119,12 +135,12 @@ def run_study(study: Study, out: str | Path, executor: str = "serial",
 
 
 def _check_result(study: Study, point: dict, result: dict) -> None:
-    for key in ("values", "wall_s", "cost"):
+    for key in ("values", "wall_s", "cpu_s", "cost"):
         if key not in result:
             raise StudyError(f"study {study.name!r}: the runner's result for {point} has no "
-                             f"{key!r} (it must return values, wall_s, cost)")
+                             f"{key!r} (it must return values, wall_s, cpu_s, cost)")
     bad = [k for k, v in result["values"].items()
            if isinstance(v, float) and not math.isfinite(v)]
-    if bad or not math.isfinite(result["wall_s"]):
+    if bad or not math.isfinite(result["cpu_s"]):
         raise StudyError(f"study {study.name!r}: point {point} gave non-finite "
-                         f"{', '.join(bad) or 'wall_s'}")
+                         f"{', '.join(bad) or 'cpu_s'}")
