@@ -53,7 +53,8 @@ def test_point_increment_fast_is_first_order_resumable_and_writes_files(tmp_path
 
 
 def _table(folder, name):
-    return np.genfromtxt(folder / name / f"{name}.csv", delimiter=",", names=True)
+    return np.genfromtxt(folder / name / f"{name}.csv", delimiter=",", names=True, dtype=None,
+                         encoding="utf-8")
 
 
 @pytest.fixture(scope="module")
@@ -93,3 +94,13 @@ def test_dem_stiffness_fast_error_falls_with_cost_toward_the_rigid_limit(dem_fas
     # the time step ∝ κ^-1/2 makes the stiff runs the costly ones
     assert np.all(np.diff(t["error_c"][order]) > 0) and np.all(np.diff(t["cost"][order]) < 0)
     assert t["error_c"][order][-1] > 0.02 and t["error_c"][order][0] < 0.005
+
+
+def test_fem_footing_fast_quadratic_elements_buy_accuracy(tmp_path):
+    run("fem_footing_nq", tmp_path, fast=True, progress=False)
+    t = _table(tmp_path, "fem_footing_nq")
+    # P1 locks under isochoric flow: N_q ~9 % high on the level-1 mesh; P2 is within 3 %
+    # at more cost per analysis (4x the DOFs)
+    p1, p2 = (t[t["element"] == e] for e in ("P1", "P2"))
+    assert p1["error_Nq"][0] > 0.06 and p2["error_Nq"][0] < 0.03
+    assert p2["cpu_s"][0] > p1["cpu_s"][0]

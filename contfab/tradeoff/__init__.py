@@ -29,7 +29,8 @@ STUDIES = {
     "dem_size": "contfab.tradeoff.dem_studies:size_study",
     "dem_inertial": "contfab.tradeoff.dem_studies:inertial_study",
     "dem_stiffness": "contfab.tradeoff.dem_studies:stiffness_study",
-    "fem_footing": "contfab.tradeoff.fem_studies:footing_study",
+    "fem_footing_nq": "contfab.tradeoff.fem_studies:footing_nq_study",
+    "fem_footing_ngamma": "contfab.tradeoff.fem_studies:footing_ngamma_study",
 }
 """Study name -> ``module:function(fast) -> Study``."""
 
