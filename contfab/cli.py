@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path as FsPath
 
 
 # --------------------------------------------------------------------------- paths
@@ -118,22 +119,30 @@ def _run_dem(args) -> None:
     if args.dem_command == "prepare":
         print(f"prepared sample written to {prepare_job(settings, args.out)}")
         return
-    written = run_job(args.path, settings, args.out, resume=args.resume)
-    for what, f in written.items():
-        print(f"{what:>14}: {f}")
+    _print_written(run_job(args.path, settings, args.out, resume=args.resume))
 
 
 # --------------------------------------------------------------------------- point
 
-def _add_point(p: argparse.ArgumentParser) -> None:
-    from contfab.material_point import DEFAULT_INCREMENT
-
+def _model_args(p: argparse.ArgumentParser) -> None:
+    """PATH, --out, --params, --tier: a material-point run's arguments."""
     p.add_argument("path", help="a standard path name (see 'contfab paths') or a path file")
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--params", default=None,
                    help="parameter TOML file (default: the shipped contfab/data/default_params.toml)")
     p.add_argument("--tier", type=int, default=None,
                    help="model tier (default: the 'tier' of the parameter file)")
+
+
+def _print_written(written) -> None:
+    for what, f in written.items():
+        print(f"{what:>14}: {f}")
+
+
+def _add_point(p: argparse.ArgumentParser) -> None:
+    from contfab.material_point import DEFAULT_INCREMENT
+
+    _model_args(p)
     p.add_argument("--increment", type=float, default=DEFAULT_INCREMENT,
                    help=f"increment Δτ_max in reference strain (default {DEFAULT_INCREMENT:g}); "
                         f"halving it halves the integration error (first order)")
@@ -142,9 +151,80 @@ def _add_point(p: argparse.ArgumentParser) -> None:
 def _run_point(args) -> None:
     from contfab.point_job import run_job
 
-    written = run_job(args.path, args.out, args.params, args.tier, args.increment)
-    for what, f in written.items():
-        print(f"{what:>14}: {f}")
+    _print_written(run_job(args.path, args.out, args.params, args.tier, args.increment))
+
+
+# --------------------------------------------------------------------------- calibrate
+
+def _executor_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--executor", choices=("serial", "pool", "dask"), default="serial",
+                   help="how the independent DEM runs execute: here one after the other "
+                        "(default), a local process pool, or dask.distributed")
+    p.add_argument("--workers", type=int, default=None,
+                   help="pool / local dask cluster size (default: the CPU count)")
+    p.add_argument("--scheduler", default=None,
+                   help="address of a running dask scheduler (implies --executor dask)")
+
+
+def _add_calibrate(p: argparse.ArgumentParser) -> None:
+    from contfab.campaign import CampaignSettings
+
+    d = CampaignSettings()
+    p.add_argument("--tier", type=int, default=2, choices=(1, 2),
+                   help="fit tier 1, or tiers 1 and 2 with both fabric laws (default 2)")
+    p.add_argument("--n", type=int, default=d.n, help=f"discs per DEM sample (default {d.n})")
+    p.add_argument("--seeds", type=int, default=len(d.seeds),
+                   help=f"DEM samples per run, seeds 1..K (default {len(d.seeds)})")
+    p.add_argument("--out", required=True,
+                   help="campaign directory (reused: finished DEM runs are not rerun)")
+    p.add_argument("--kappas", type=float, nargs="+", default=[1e3, 1e4],
+                   help="stiffness numbers kn/P0 of the fitted biaxial runs (default 1e3 1e4)")
+    p.add_argument("--kappa-heldout", type=float, default=3e3,
+                   help="stiffness number of the held-out biaxial runs (default 3e3)")
+    p.add_argument("--max-nfev", type=int, default=40,
+                   help="least-squares evaluations per fit stage (default 40)")
+    p.add_argument("--no-probe", action="store_true", help="skip the stress-probing runs")
+    _executor_args(p)
+
+
+def _run_calibrate(args) -> None:
+    from contfab.calibrate import calibrate
+    from contfab.campaign import CampaignSettings, default_runs
+
+    if args.seeds < 1:
+        raise ValueError(f"--seeds {args.seeds} out of range; accepted >= 1")
+    if args.max_nfev < 1:
+        raise ValueError(f"--max-nfev {args.max_nfev} out of range; accepted >= 1")
+    cs = CampaignSettings(n=args.n, seeds=tuple(range(1, args.seeds + 1)),
+                          runs=default_runs(tuple(args.kappas), args.kappa_heldout),
+                          probe=not args.no_probe, probe_kappa=args.kappas[0])
+    command = (f"contfab calibrate --tier {args.tier} --n {args.n} --seeds {args.seeds} "
+               f"--kappas {' '.join(f'{k:g}' for k in args.kappas)} "
+               f"--kappa-heldout {args.kappa_heldout:g} --max-nfev {args.max_nfev} "
+               f"--out {args.out}{' --no-probe' if args.no_probe else ''}")
+    written = calibrate(args.out, args.tier, cs, args.executor, args.workers, args.scheduler,
+                        command=command, max_nfev=args.max_nfev)
+    for what in ("params", "report", "errors_md", "summary"):
+        print(f"{what:>10}: {written[what]}")
+    print(f"{'plots':>10}: {FsPath(args.out) / 'report'}/*.png")
+
+
+# --------------------------------------------------------------------------- compare
+
+def _add_compare(p: argparse.ArgumentParser) -> None:
+    _model_args(p)
+    p.add_argument("--n", type=int, default=1000, help="discs in the DEM sample (default 1000)")
+    p.add_argument("--seed", type=int, default=1, help="DEM sample seed (default 1)")
+    p.add_argument("--kappa", type=float, default=1e3, help="stiffness number kn/P0 (default 1e3)")
+    p.add_argument("--density", choices=("dense", "loose"), default="dense",
+                   help="dense (mu_prep = 0) or loose (mu_prep = mu) sample (default dense)")
+
+
+def _run_compare(args) -> None:
+    from contfab.compare import compare
+
+    _print_written(compare(args.path, args.out, args.params, args.tier, n=args.n, seed=args.seed,
+                           kappa=args.kappa, density=args.density))
 
 
 # --------------------------------------------------------------------------- bench
@@ -179,21 +259,20 @@ def _run_bench(args) -> None:
 
 def _add_tradeoff(p: argparse.ArgumentParser) -> None:
     from contfab.tradeoff import STUDIES
-    from contfab.tradeoff.study import EXECUTORS
 
     p.add_argument("study", choices=[*STUDIES, "all"], help="which study ('all': every one, "
                                                           "and DIR/tradeoff.md)")
     p.add_argument("--out", required=True, help="output directory (points are reused on rerun)")
     p.add_argument("--fast", action="store_true", help="the small preset the test suite runs")
-    p.add_argument("--executor", choices=sorted(EXECUTORS), default="serial",
-                   help="how the points run (default serial)")
+    _executor_args(p)
     p.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
 def _run_tradeoff(args) -> None:
     from contfab.tradeoff import run
 
-    written = run(args.study, args.out, args.fast, args.executor, progress=not args.quiet)
+    written = run(args.study, args.out, args.fast, args.executor, args.workers, args.scheduler,
+                  progress=not args.quiet)
     for what, f in written.items():
         print(f"{what:>24}: {f}")
 
@@ -205,6 +284,10 @@ COMMANDS = {
     "bench": (_add_bench, _run_bench, "speed and memory benchmarks"),
     "point": (_add_point, _run_point, "drive one material point along a loading path (CSV, "
                                       "JSON, PNG)"),
+    "calibrate": (_add_calibrate, _run_calibrate, "fit the model tiers to a DEM campaign: "
+                                                  "params.toml with provenance and a report"),
+    "compare": (_add_compare, _run_compare, "the DEM and the material point on one path: "
+                                            "overlay plots and error metrics"),
     "tradeoff": (_add_tradeoff, _run_tradeoff, "speed against accuracy studies (CSV, PNG, "
                                                "Markdown)"),
 }

@@ -500,7 +500,7 @@ def start_state(tier: int, params: Params, state0=None) -> np.ndarray:
 
 def run_path(path: Path | str, params: Params | None = None, tier: int | None = None, *,
              increment: float = DEFAULT_INCREMENT, min_increment: float | None = None,
-             stress0=None, state0=None, rtol: float = RTOL,
+             stress0=None, state0=None, start: "PointResult | None" = None, rtol: float = RTOL,
              progress: bool = False) -> PointResult:
     """Drive one material point along ``path`` (a :class:`dem.paths.Path` or a standard
     path name / file; not a probe family: see :func:`run_family`).
@@ -509,13 +509,17 @@ def run_path(path: Path | str, params: Params | None = None, tier: int | None = 
     ``increment`` is the increment knob Δτ_max and ``min_increment`` the step-cutting
     floor (default ``MIN_INCREMENT_FRACTION`` · increment); ``stress0`` (3,) the start
     stress in units of P0 (default -I: isotropic at P0 = 1), ``state0`` the start state
-    (see :func:`start_state`). Raises :class:`IntegrationError` when the path cannot be
+    (see :func:`start_state`); or ``start``: a previous result of the same tier, whose
+    final stress and state this run starts from (e.g. a probe family from a state that a
+    loading path reached; the strain and τ columns restart at 0). Raises :class:`IntegrationError` when the path cannot be
     followed. See the module doc for everything else.
     """
     path = load_path(path) if isinstance(path, str) else path
     if path.probes is not None:
         raise ValueError(f"path {path.name!r} is a probe family: run it with run_family "
                          f"(one run per probe, each from the same start)")
+    if start is not None:
+        stress0, state0 = _start_from(start, params, tier, stress0, state0)
     params, tier, stress0, state0 = _prepare(params, tier, increment, min_increment, stress0,
                                              state0)
     min_increment = MIN_INCREMENT_FRACTION * increment if min_increment is None else min_increment
@@ -543,9 +547,22 @@ def run_path(path: Path | str, params: Params | None = None, tier: int | None = 
 def run_family(path: Path | str, params: Params | None = None, tier: int | None = None,
                **options) -> list[PointResult]:
     """:func:`run_path` on each of ``path.expand()`` (one per probe of a probe family, or
-    the path itself), each from the same start."""
+    the path itself), each from the same start (``options`` as :func:`run_path`, e.g.
+    ``start=`` a result whose final state the probes start from)."""
     path = load_path(path) if isinstance(path, str) else path
     return [run_path(p, params, tier, **options) for p in path.expand()]
+
+
+def _start_from(start: PointResult, params, tier, stress0, state0):
+    """(stress0 in units of P0, state0) of a run that continues from ``start``."""
+    if stress0 is not None or state0 is not None:
+        raise ValueError("give either start (a previous result) or stress0/state0, not both")
+    p_ref = (default_params() if params is None else params).p_ref
+    want = start.tier if tier is None else tier
+    if want != start.tier:
+        raise ValueError(f"start is a tier-{start.tier} result; it cannot start a tier-{want} "
+                         f"run (its state has the variables {list(tiers.STATE_NAMES[start.tier])})")
+    return start.stress / p_ref, start.state
 
 
 def _prepare(params, tier, increment, min_increment, stress0, state0):

@@ -9,6 +9,8 @@ A parameter file holds the selected ``tier`` and one table per section::
     [tier2]            a0_deg..a3_deg, b0_deg..b3_deg, sharpness, n_search, fabric_law,
                        kappa_a, k_c, k_o, z_crit, b_ratio_crit, relax_rate (tier 2, with [tier1])
     [initial]          c0, A0, B0, theta_p0_deg    (initial state of tiers >= 1)
+    [provenance]       free-form (how the file was made, e.g. by ``contfab calibrate``);
+                       not validated, not part of the parameter set
 
 Each section is a small frozen dataclass (a :class:`Section`) whose fields declare
 their unit, accepted range and meaning; loading checks every value against its
@@ -446,6 +448,7 @@ class Params:
     def from_dict(cls, data: Mapping, source: str = "<dict>") -> "Params":
         """Validate a parsed TOML document (``tier`` plus one table per section)."""
         data = dict(data)
+        data.pop("provenance", None)      # free-form record of how the file was made
         if "tier" not in data:
             raise ParamError(f"{source}: missing the top-level 'tier' "
                              f"(accepted: {', '.join(map(str, sorted(TIER_SECTIONS)))})")

@@ -14,14 +14,16 @@ import numpy as np
 from dem.fileio import atomic_path
 
 
-def _pyplot():
+def pyplot():
+    """matplotlib.pyplot with the Agg backend (imported lazily)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     return plt
 
 
-def _save(fig, plt, file) -> None:
+def save_figure(fig, plt, file) -> None:
+    """Lay out, write ``file`` atomically, close the figure."""
     fig.tight_layout()
     with atomic_path(file) as tmp:
         fig.savefig(tmp, dpi=110)
@@ -30,7 +32,7 @@ def _save(fig, plt, file) -> None:
 
 def history_plot(results, file, title: str = "") -> None:
     """R/P, ε_v, c (and A, B, θp in degrees with a fabric) against τ, one line per run."""
-    plt = _pyplot()
+    plt = pyplot()
     panels = [("RP", "R/P"), ("eps_v", "ε_v (dilation > 0)"), ("c", "packing fraction c")]
     if results[0].has_fabric:
         panels += [("A", "A = z/π"), ("B", "B"), ("theta_p", "θp (deg)")]
@@ -46,12 +48,12 @@ def history_plot(results, file, title: str = "") -> None:
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel("reference strain τ")
     axes[0, 0].set_title(title)
-    _save(fig, plt, file)
+    save_figure(fig, plt, file)
 
 
 def response_plot(results, file, title: str = "") -> None:
     """Probe family: stress increments (Δσxx, Δσyy) and strain responses (Δεxx, Δεyy)."""
-    plt = _pyplot()
+    plt = pyplot()
     ds = np.array([[r["sxx"][-1] - r["sxx"][0], r["syy"][-1] - r["syy"][0]] for r in results])
     de = np.array([[r["eps_xx"][-1] - r["eps_xx"][0], r["eps_yy"][-1] - r["eps_yy"][0]]
                    for r in results])
@@ -68,4 +70,4 @@ def response_plot(results, file, title: str = "") -> None:
     ax[0].set_title("stress probes")
     ax[1].set_title("strain responses")
     fig.suptitle(title)
-    _save(fig, plt, file)
+    save_figure(fig, plt, file)

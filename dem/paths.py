@@ -40,7 +40,8 @@ Path files are TOML (angles in degrees there, radians in code)::
 A file with a ``[probes]`` table instead of stages describes a family of stress
 probes (seed 001 §3, in 2D): from whatever state the driver starts in, stress
 increments of size ``magnitude`` in ``directions`` equally spaced directions of the
-(σxx, σyy) plane (σxy held), see :func:`Path.expand`.
+(σxx, σyy) plane (σxy held), optionally each followed by its unloading (``unload``),
+plus a zero-increment reference probe (``hold``), see :func:`Path.expand`.
 
 Standard paths ship in ``dem/paths/*.toml``; :func:`load_path` takes either one
 of their names or a file.
@@ -175,22 +176,38 @@ class Stage:
 @dataclass(frozen=True)
 class ProbeFamily:
     """Stress probes (seed 001 §3 in 2D): increments Δσ = m (cos β, sin β) in the
-    (σxx, σyy) plane, β = 2πk/n, each applied from the same starting state."""
+    (σxx, σyy) plane, β = 2πk/n, each applied from the same starting state.
+
+    With ``unload`` each probe ramps back to its start stress in a second stage of the
+    same length: the strain left after unloading is the plastic one (Bardet 1994, seed
+    001 §3.3.1). With ``hold`` a last probe of zero increment runs for the same time: the
+    drift of the start state itself (creep), to be subtracted from every probe."""
 
     directions: int
     magnitude: float
     length: float
+    unload: bool = False
+    hold: bool = False
 
-    def stages(self) -> list[Stage]:
+    def probes(self) -> list[tuple[str, tuple[Stage, ...]]]:
+        """(name, stages) of each probe, in the order of :meth:`Path.expand`."""
         out = []
-        for k in range(self.directions):
+        for k in range(self.directions + (1 if self.hold else 0)):
             beta = 2.0 * math.pi * k / self.directions
-            ctl = {"xx": StressControl(increment=self.magnitude * math.cos(beta), ramp=True),
-                   "yy": StressControl(increment=self.magnitude * math.sin(beta), ramp=True),
-                   "xy": StressControl(increment=0.0)}
-            out.append(Stage(name=f"probe_{math.degrees(beta):05.1f}deg", length=self.length,
-                             stress=ctl, output_every=self.length / 10.0))
+            m = self.magnitude if k < self.directions else 0.0
+            name = f"probe_{math.degrees(beta):05.1f}deg" if k < self.directions else "probe_hold"
+            dx, dy = m * math.cos(beta), m * math.sin(beta)
+            stages = [self._stage(name, dx, dy)]
+            if self.unload:
+                stages.append(self._stage(f"{name}_unload", -dx, -dy))
+            out.append((name, tuple(stages)))
         return out
+
+    def _stage(self, name: str, dx: float, dy: float) -> Stage:
+        ctl = {"xx": StressControl(increment=dx, ramp=True),
+               "yy": StressControl(increment=dy, ramp=True),
+               "xy": StressControl(increment=0.0)}
+        return Stage(name=name, length=self.length, stress=ctl, output_every=self.length / 10.0)
 
 
 @dataclass(frozen=True)
@@ -206,8 +223,8 @@ class Path:
         """The single-stage-list paths to run: [self], or one path per probe."""
         if self.probes is None:
             return [self]
-        return [replace(self, name=f"{self.name}/{s.name}", stages=(s,), probes=None)
-                for s in self.probes.stages()]
+        return [replace(self, name=f"{self.name}/{name}", stages=stages, probes=None)
+                for name, stages in self.probes.probes()]
 
     def to_dict(self) -> dict:
         """A JSON-able description (for the sidecar of every run)."""
@@ -245,10 +262,14 @@ def parse_path(data: Mapping, source: str = "<path>") -> Path:
         if "stage" in data:
             raise PathError(f"{source}: give either [probes] or [[stage]], not both")
         pr = data["probes"]
-        _only(pr, {"directions", "magnitude", "length"}, f"{source} [probes]")
+        _only(pr, {"directions", "magnitude", "length", "unload", "hold"}, f"{source} [probes]")
+        for key in ("unload", "hold"):
+            if not isinstance(pr.get(key, False), bool):
+                raise PathError(f"{source} [probes]: {key} = {pr[key]!r} must be true or false")
         fam = ProbeFamily(directions=int(_positive(pr, "directions", f"{source} [probes]")),
                           magnitude=_positive(pr, "magnitude", f"{source} [probes]"),
-                          length=_positive(pr, "length", f"{source} [probes]"))
+                          length=_positive(pr, "length", f"{source} [probes]"),
+                          unload=pr.get("unload", False), hold=pr.get("hold", False))
         return Path(name=name, description=str(data.get("description", "")), probes=fam)
     stages = data.get("stage")
     if not stages:

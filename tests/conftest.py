@@ -1,14 +1,24 @@
 """Shared test helpers: model parameters and updates, small prepared DEM packings."""
+from pathlib import Path
+
 import numba
 import numpy as np
 import pytest
 
 from contfab.models import slip_planes, tiers
-from contfab.params import Params
+from contfab.params import Params, load_params
 from dem.contact_law import ContactLaw
 from dem.integrator import dynamics
 from dem.particles import parse_radii, sample_radii
 from dem.prepare import compress_to_pressure, random_gas
+
+FIXED_PARAMS = Path(__file__).parent / "data" / "model_params.toml"
+
+
+def fixed_params() -> Params:
+    """Fixed parameters for tests of the model and the driver (tests/data/model_params.toml:
+    the pre-calibration values), independent of the shipped, calibrated defaults."""
+    return load_params(FIXED_PARAMS)
 
 TIER1 = dict(phi_star_deg=25.0, dphi_dc_deg=60.0, dpsi_dc_deg=80.0, c_star=0.81)
 """Tier-1 values tier 2 reads (c-terms and clamps); a0 = φ*, b0 = 0 reduce tier 2 to tier 1."""

@@ -11,7 +11,8 @@ import pytest
 from contfab import material_point as mp
 from contfab.models import tiers
 from contfab.models.cone import friction_angles
-from contfab.params import ParamError, default_params
+from contfab.params import ParamError
+from conftest import fixed_params
 from dem.paths import COMPONENTS, STRESS_INDEX, Path, load_path, parse_path, standard_paths
 
 TIERS = sorted(tiers.KERNELS)
@@ -93,7 +94,7 @@ def test_mixed_control_newton_converges_quadratically():
     Biaxial (σxx held): residuals 0.29, 6.1e-4, 2.7e-9, 3e-16 (measured). With σxy held as
     well, by the unknown L_xy that also spins the point (the Jacobian's spin column):
     0.29, 0.047, 1.5e-3, 3.4e-6, 7.6e-12, 3e-16 (measured; last order 2.1)."""
-    params = default_params()
+    params = fixed_params()
     start = mp.run_path(biaxial(0.01, 0.01), params, 1, state0={"c": 0.83})
     dl = np.array([0.0, -1e-3, 0.0, 0.0])
     for unknown, target in (([True, False, False, False], [-1.0, 0.0, 0.0]),
@@ -127,7 +128,7 @@ def stress_targets(path, result):
 @pytest.mark.parametrize("tier", TIERS)
 @pytest.mark.parametrize("lam", [1e3, 1e6])
 def test_stress_targets_hold_on_every_standard_path(tier, lam):
-    params = default_params().replace("regularization", lam=lam)
+    params = fixed_params().replace("regularization", lam=lam)
     # the documented tolerance at stresses <= 4 P0 and strain increments <= 2Δτ: 1.7e-13
     # (λ = 1e3), 3e-11 (λ = 1e6: round-off of trial stresses of order E_reg Δε ~ 1e3 P0)
     bound = mp.RTOL * 4 + mp.ROUNDOFF * (4 + lam * 2 * mp.DEFAULT_INCREMENT)
@@ -151,7 +152,7 @@ def test_stress_targets_hold_on_every_standard_path(tier, lam):
 def test_isotropic_ramp_and_probes_inside_the_cone_are_elastic_closed_form(tier):
     """Inside the cone the regularization is the whole response: ε_v = -ΔP/K on the
     isotropic ramp (4 P0 and back), and each stress probe gives Δε = C⁻¹Δσ."""
-    params = default_params()
+    params = fixed_params()
     k_bulk, g = params.regularization.moduli()
     res = mp.run_path("isotropic_compression", params, tier)
     loaded = np.argmin(np.abs(res["tau"] - 0.05))
@@ -170,7 +171,7 @@ def test_isotropic_ramp_and_probes_inside_the_cone_are_elastic_closed_form(tier)
 def test_tier1_dense_and_loose_reach_the_critical_state():
     """Biaxial compression to 200% axial strain: dense (c0 = 0.83) dilates and softens,
     loose (0.79) contracts and hardens, both end at c = c*, R/P = sin φ* to 1e-6."""
-    params = default_params()
+    params = fixed_params()
     path = biaxial(2.0, 0.01)
     c_star = params.tier1.c_star
     sin_star = np.sin(np.radians(params.tier1.phi_star_deg))
@@ -212,7 +213,7 @@ DENSE = {"c": 0.83}
 def case_params(tier):
     """Default parameters; for tier 2 with fabric-dependent friction and dilatancy
     (a2 = 10°, b2 = 5° per unit B), so the fabric feeds back on the stress."""
-    params = default_params()
+    params = fixed_params()
     return params.replace("tier2", a2_deg=10.0, b2_deg=5.0) if tier == 2 else params
 
 
@@ -299,7 +300,7 @@ def test_tier1_rotation_below_the_cone_is_rigid_up_to_the_regularization():
     the strain (all elastic) falls as 1/λ."""
     peak = {}
     for lam in (1e3, 1e4, 1e5):
-        res = mp.run_path("axes_rotation", default_params().replace("regularization", lam=lam), 1)
+        res = mp.run_path("axes_rotation", fixed_params().replace("regularization", lam=lam), 1)
         assert np.all(res["gp"] == 0.0) and np.all(res["c"] == res["c"][0])
         strain = np.stack([res["eps_xx"], res["eps_yy"], res["eps_xy"]], 1)
         peak[lam] = np.abs(strain).max()
@@ -319,7 +320,7 @@ def test_stop_condition_is_located_inside_the_increment():
                       {"xx": -1.0}, until={"c": 0.82})
     ends = []
     for h in (2e-3, 7e-4):
-        res = mp.run_path(path, default_params(), 1, increment=h, state0={"c": 0.83})
+        res = mp.run_path(path, fixed_params(), 1, increment=h, state0={"c": 0.83})
         assert res.stats["stops"] == ["until c"]
         assert res["c"][-1] == pytest.approx(0.82, abs=1e-12)
         ends.append(res["eps_yy"][-1])
@@ -331,7 +332,7 @@ def test_unreachable_stress_target_is_a_clear_error_with_the_partial_history():
     path = stage_path("too_far", 0.1, 0.01, {"xy": 0.0, "yx": 0.0},
                       {"xx": -1.0, "yy": {"target": -3.0, "ramp": True}})
     with pytest.raises(mp.IntegrationError) as err:
-        mp.run_path(path, default_params(), 0, increment=1e-2)
+        mp.run_path(path, fixed_params(), 0, increment=1e-2)
     msg = str(err.value)
     assert "stage 0 ('too_far')" in msg and "min_increment" in msg
     assert "yield cone" in msg and err.value.partial is not None
@@ -352,9 +353,9 @@ def test_step_cutting_recovers_from_a_failed_update(monkeypatch):
             out.status[0] = -1
         return out
 
-    ref = mp.run_path("biaxial", default_params(), 1)
+    ref = mp.run_path("biaxial", fixed_params(), 1)
     monkeypatch.setattr(tiers, "update", flaky)
-    res = mp.run_path("biaxial", default_params(), 1)
+    res = mp.run_path("biaxial", fixed_params(), 1)
     assert res.stats["cuts"] == 1
     assert res["syy"][-1] == pytest.approx(ref["syy"][-1], rel=1e-9)
 
@@ -371,7 +372,7 @@ def test_step_cutting_recovers_from_a_failed_update(monkeypatch):
 ])
 def test_bad_options_are_clear_errors(kwargs, words):
     with pytest.raises(ValueError) as err:
-        mp.run_path("biaxial", default_params(), **{"tier": 1, **kwargs})
+        mp.run_path("biaxial", fixed_params(), **{"tier": 1, **kwargs})
     for w in words:
         assert w in str(err.value)
 
@@ -379,7 +380,7 @@ def test_bad_options_are_clear_errors(kwargs, words):
 def test_stop_on_a_quantity_the_tier_does_not_carry_is_refused_before_running():
     path = stage_path("to_fabric", 0.1, 0.01, {"yy": -1.0}, {"xx": -1.0}, until={"B": 0.1})
     with pytest.raises(ValueError, match=r"until.B is not a quantity of tier 1 .*no fabric"):
-        mp.run_path(path, default_params(), 1)
+        mp.run_path(path, fixed_params(), 1)
 
 
 def test_probe_family_needs_run_family_and_unknown_path_names_the_standard_ones():

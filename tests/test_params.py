@@ -6,12 +6,13 @@ import pytest
 
 from contfab.models import fabric_model, tiers
 from contfab.params import ParamError, Params, default_params, default_params_path, load_params
+from conftest import FIXED_PARAMS, fixed_params
 
 
 def _doc(**changes):
-    """The default parameter document with some values changed: {"section.key": value}."""
+    """The fixed test parameter document with some values changed: {"section.key": value}."""
     import tomllib
-    with default_params_path().open("rb") as fh:
+    with FIXED_PARAMS.open("rb") as fh:
         doc = tomllib.load(fh)
     for where, value in changes.items():
         if "." in where:
@@ -129,7 +130,7 @@ def test_structural_errors_are_clear(tmp_path):
     with pytest.raises(ParamError, match=r"tier 1 needs a \[tier1\] section"):
         Params.from_dict(doc)
     f = tmp_path / "p.toml"
-    f.write_text(default_params_path().read_text().replace("c_star = 0.81", "c_star = 1.81"))
+    f.write_text(FIXED_PARAMS.read_text().replace("c_star = 0.81", "c_star = 1.81"))
     with pytest.raises(ParamError, match=r"c_star = 1.81 is outside the accepted range \(0, 1\)"):
         load_params(f)
     f.write_text("tier = 1\n[tier1\n")
@@ -138,7 +139,7 @@ def test_structural_errors_are_clear(tmp_path):
 
 
 def test_replace_revalidates_and_unknown_tier_at_update():
-    p = default_params()
+    p = fixed_params()
     assert p.replace("regularization", lam=1e6).array(0)[0] == pytest.approx(5e5)
     with pytest.raises(ParamError, match="lambda = -1"):
         p.replace("regularization", lam=-1.0)
@@ -153,7 +154,7 @@ def test_replace_revalidates_and_unknown_tier_at_update():
 def test_to_dict_round_trips_through_from_dict():
     """The sidecar of a run writes Params.to_dict(): reading it back gives the same kernels'
     arrays for every tier, with TOML keys (lambda) and the fabric law by name."""
-    params = default_params()
+    params = fixed_params()
     doc = params.to_dict()
     assert doc["regularization"]["lambda"] == params.regularization.lam
     assert doc["tier2"]["fabric_law"] == "balance"

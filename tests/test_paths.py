@@ -4,7 +4,7 @@ import pytest
 
 from dem.paths import PathError, StopCondition, load_path, parse_path, standard_paths
 
-STANDARD = ["axes_rotation", "biaxial", "isochoric_shear", "isotropic_compression",
+STANDARD = ["axes_rotation", "biaxial", "direction_change", "isochoric_shear", "isotropic_compression",
             "proportional_strain", "simple_shear_reversal", "stress_probes"]
 
 
@@ -12,6 +12,13 @@ def test_standard_paths_ship_and_parse():
     assert standard_paths() == STANDARD
     for name in STANDARD:
         assert load_path(name).expand()
+
+
+def test_direction_change_turns_the_compression_axis_by_90_degrees():
+    y, x = load_path("direction_change").stages
+    assert y.rate_vector.tolist() == [0.0, -1.0, 0.0, 0.0] and y.stress_controlled[0]
+    assert x.rate_vector.tolist() == [-1.0, 0.0, 0.0, 0.0] and x.stress_controlled[1]
+    assert x.stress_target(np.array([-1.0, -1.7, 0.0]), 0.0).tolist() == [-1.0, -1.0, 0.0]
 
 
 def test_biaxial_controls():
@@ -66,6 +73,8 @@ def test_stop_condition_crossing_either_way():
      ["R = 1.5", "[0, P)"]),
     ({"stage": [{"length": 1.0, "output_every": 2.0}]}, ["output_every = 2.0"]),
     ({}, ["at least one"]),
+    ({"probes": {"directions": 4, "magnitude": 0.1, "length": 0.01, "unload": 1}},
+     ["unload = 1", "true or false"]),
 ])
 def test_bad_paths_name_the_value(table, words):
     with pytest.raises(PathError) as err:
@@ -77,3 +86,19 @@ def test_bad_paths_name_the_value(table, words):
 def test_unknown_path_lists_the_standard_ones():
     with pytest.raises(PathError, match="biaxial"):
         load_path("no_such_path")
+
+
+def test_probe_family_with_unloading_and_hold_reference():
+    """Each probe ramps Δσ in and back out (Bardet's plastic residual), the last one holds."""
+    fam = parse_path({"probes": {"directions": 4, "magnitude": 0.1, "length": 0.01,
+                                 "unload": True, "hold": True}}, "p.toml").expand()
+    assert [p.name.split("/")[1] for p in fam] == ["probe_000.0deg", "probe_090.0deg",
+                                                    "probe_180.0deg", "probe_270.0deg", "probe_hold"]
+    start = np.array([-1.0, -2.0, 0.1])
+    for p, (dx, dy) in zip(fam, [(0.1, 0), (0, 0.1), (-0.1, 0), (0, -0.1), (0, 0)]):
+        load, unload = p.stages
+        assert load.stress_target(start, 1.0) == pytest.approx(start + [dx, dy, 0.0], abs=1e-15)
+        assert load.stress_target(start, 0.5) == pytest.approx(start + [dx / 2, dy / 2, 0.0], abs=1e-15)
+        end = load.stress_target(start, 1.0)
+        assert unload.stress_target(end, 1.0) == pytest.approx(start, abs=1e-15)
+        assert load.length == unload.length == 0.01

@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 from contfab.cli import main
+from contfab.executor import ExecutorError
 from contfab.tradeoff import load_study, run
 from contfab.tradeoff.study import StudyError, pareto_front, point_key, run_study
 
@@ -26,7 +27,7 @@ def test_point_key_is_stable_and_distinguishes_points():
 def test_unknown_study_or_executor_is_a_clean_error(tmp_path):
     with pytest.raises(StudyError, match="unknown study 'nope'; available: point_increment"):
         load_study("nope", True)
-    with pytest.raises(StudyError, match="executor = 'nope' is not available; accepted: serial"):
+    with pytest.raises(ExecutorError, match="executor 'nope' is not known; accepted: serial"):
         run_study(load_study("point_increment", True), tmp_path, executor="nope")
 
 

@@ -44,6 +44,7 @@ def load_study(name: str, fast: bool) -> Study:
 
 
 def run(name: str, out: str | Path, fast: bool = False, executor: str = "serial",
+        workers: int | None = None, scheduler: str | None = None,
         progress: bool = True) -> dict[str, Path]:
     """Run one study (or ``all``) into ``out``; returns {what: file written}."""
     names = list(STUDIES) if name == "all" else [name]
@@ -53,7 +54,7 @@ def run(name: str, out: str | Path, fast: bool = False, executor: str = "serial"
     sections = []
     for study in studies:
         t0 = time.perf_counter()
-        results = run_study(study, out / study.name, executor, progress)
+        results = run_study(study, out / study.name, executor, workers, scheduler, progress)
         rows, notes = study.evaluate(study, list(study.points), results)
         notes["study wall time (s, this run; reused points cost 0)"] = time.perf_counter() - t0
         files = report.write(study, rows, notes, out / study.name)

@@ -17,7 +17,9 @@ The combined error of a row is the largest of its errors (:func:`combined_error`
 
 :func:`run_study` is resumable: each point's result is one JSON file in ``DIR/points/``,
 written atomically when the point finishes, and reused on a rerun when its point (knobs
-and settings) is identical.
+and settings) is identical. The points run through :mod:`contfab.executor` (serial, a
+process pool or dask); each job writes its own point file as it finishes, so an interrupted
+study keeps every finished point whatever the executor.
 """
 from __future__ import annotations
 
@@ -97,23 +99,21 @@ def is_default(study: Study, row: dict) -> bool:
     return all(row["knobs"].get(k) == v for k, v in study.default.items())
 
 
-def _serial_map(fn, items, progress: bool, desc: str):
-    from tqdm import tqdm
-    for item in tqdm(items, desc=desc, unit="point", disable=not progress, mininterval=1.0):
-        yield item, fn(*item)
+def run_and_save(job: tuple) -> dict:
+    """One executor job: run a point, check its result, write its point file; returns it."""
+    study, point, path = job
+    result = study.run_point(study, point)
+    _check_result(study, point, result)
+    write_json(path, {"point": point, "result": result})
+    return result
 
 
-EXECUTORS = {"serial": _serial_map}
-"""How the missing points run: ``serial`` in this process (one after another)."""
+def run_study(study: Study, out: str | Path, executor: str = "serial", workers: int | None = None,
+              scheduler: str | None = None, progress: bool = True) -> list[dict]:
+    """Run the missing points of ``study`` (reusing ``out/points/*.json``) through the
+    executor (:func:`contfab.executor.make_executor`); returns the results in point order."""
+    from contfab.executor import make_executor
 
-
-def run_study(study: Study, out: str | Path, executor: str = "serial",
-              progress: bool = True) -> list[dict]:
-    """Run the missing points of ``study`` (reusing ``out/points/*.json``); returns the
-    results in point order."""
-    if executor not in EXECUTORS:
-        raise StudyError(f"executor = {executor!r} is not available; accepted: "
-                         f"{', '.join(sorted(EXECUTORS))}")
     folder = Path(out) / "points"
     results: dict[int, dict] = {}
     missing = []
@@ -125,12 +125,12 @@ def run_study(study: Study, out: str | Path, executor: str = "serial",
                 results[i] = saved["result"]
                 continue
         missing.append(i)
-    items = [(study, study.points[i]) for i in missing]
-    for (_, point), result in EXECUTORS[executor](study.run_point, items, progress, study.name):
-        _check_result(study, point, result)
-        i = study.points.index(point)
-        write_json(folder / f"{point_key(point)}.json", {"point": point, "result": result})
-        results[i] = result
+    jobs = [(study, study.points[i], folder / f"{point_key(study.points[i])}.json")
+            for i in missing]
+    with make_executor(executor, workers, scheduler) as ex:
+        for i, result in zip(missing, ex.map(run_and_save, jobs, desc=study.name,
+                                             progress=progress)):
+            results[i] = result
     return [results[i] for i in range(len(study.points))]
 
 
