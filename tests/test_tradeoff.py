@@ -105,3 +105,51 @@ def test_fem_footing_fast_quadratic_elements_buy_accuracy(tmp_path):
     p1, p2 = (t[t["element"] == e] for e in ("P1", "P2"))
     assert p1["error_Nq"][0] > 0.06 and p2["error_Nq"][0] < 0.03
     assert p2["cpu_s"][0] > p1["cpu_s"][0]
+
+
+@pytest.mark.slow   # a DEM reference run plus three tiers: ~1 min of CPU with a cold cache
+def test_tier_biaxial_fast_tier1_carries_the_volume_change(tmp_path):
+    run("tier_biaxial", tmp_path, fast=True, progress=False)
+    t = _table(tmp_path, "tier_biaxial")
+    assert list(t["tier"]) == [0, 1, 2]
+    # a dense DEM sample dilates: tier 0 (constant ψ = 0, no c) misses ε_v by a few
+    # percent strain, tier 1's ψ(c) brings it within 1.5 %; tier 2 with the shipped a2 = b2 = 0
+    # follows tier 1's stress exactly, at more cost per increment
+    assert t["error_eps_v"][0] > 0.02 and t["error_eps_v"][1] < 0.015
+    assert abs(t["error_RP"][2] - t["error_RP"][1]) < 1e-6
+    assert t["cost"][2] > t["cost"][1]
+
+
+def _history(path):
+    from contfab import material_point as mp
+    from contfab.params import default_params
+    return mp.run_path(path, default_params(), 1, increment=4e-3).history
+
+
+def test_auto_tier_indicators_separate_monotonic_from_reversal():
+    from contfab.tradeoff.auto_tier import indicators
+    mono = indicators(_history("biaxial"), 0.81)
+    rev = indicators(_history("simple_shear_reversal"), 0.81)
+    # biaxial: axes fixed, no reversal; simple shear reversal: the deviator turns by 90°
+    # (α from 45° to -45°) and the deviatoric stress power goes negative at the reversal
+    assert mono.loading == "monotonic" and mono.axes_rotation_deg < 1.0 and not mono.reversal
+    assert rev.loading == "reversal" and rev.reversal and abs(rev.axes_rotation_deg - 90) < 1
+
+
+def test_auto_tier_picks_the_cheapest_tier_within_tolerance():
+    from contfab.tradeoff.auto_tier import AutoTierError, Indicators, choose
+    table = {"monotonic": [{"tier": 0, "error": 0.09, "cost": 40},
+                           {"tier": 1, "error": 0.03, "cost": 80},
+                           {"tier": 2, "error": 0.03, "cost": 140}],
+             "reversal": [{"tier": 0, "error": 0.2, "cost": 40},
+                          {"tier": 1, "error": 0.15, "cost": 80},
+                          {"tier": 2, "error": 0.05, "cost": 140}]}
+    mono, rev = Indicators(0.0, False, 0.01), Indicators(90.0, True, 0.01)
+    assert choose(mono, 0.1, table)[0] == 0
+    tier, why = choose(mono, 0.05, table)
+    assert tier == 1 and "monotonic loading" in why and "0.03 <= 0.05" in why
+    assert choose(rev, 0.05, table)[0] == 2
+    tier, why = choose(rev, 0.01, table)
+    assert tier == 2 and "no tier meets 0.01" in why
+    with pytest.raises(AutoTierError, match=r"tolerance = -1 out of range; accepted \(0, inf\)"):
+        choose(mono, -1, table)

@@ -26,6 +26,8 @@ STUDIES = {
     "point_increment": "contfab.tradeoff.point_studies:increment_study",
     "point_lambda": "contfab.tradeoff.point_studies:lambda_study",
     "tier2_planes": "contfab.tradeoff.point_studies:planes_study",
+    "tier_biaxial": "contfab.tradeoff.tier_studies:biaxial_study",
+    "tier_reversal": "contfab.tradeoff.tier_studies:reversal_study",
     "dem_size": "contfab.tradeoff.dem_studies:size_study",
     "dem_inertial": "contfab.tradeoff.dem_studies:inertial_study",
     "dem_stiffness": "contfab.tradeoff.dem_studies:stiffness_study",
