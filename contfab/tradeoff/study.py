@@ -104,7 +104,7 @@ def run_and_save(job: tuple) -> dict:
     study, point, path = job
     result = study.run_point(study, point)
     _check_result(study, point, result)
-    write_json(path, {"point": point, "result": result})
+    write_json(path, {"point": point, "settings": study.settings, "result": result})
     return result
 
 
@@ -121,7 +121,8 @@ def run_study(study: Study, out: str | Path, executor: str = "serial", workers: 
         f = folder / f"{point_key(point)}.json"
         if f.is_file():
             saved = json.loads(f.read_text())
-            if saved.get("point") == json.loads(json.dumps(point)):
+            if (saved.get("point") == json.loads(json.dumps(point))
+                    and saved.get("settings") == json.loads(json.dumps(study.settings))):
                 results[i] = saved["result"]
                 continue
         missing.append(i)
