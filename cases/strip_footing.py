@@ -104,10 +104,12 @@ def footing_mesh(phi_deg: float, level: int, kind: str = "tri", factor: str = "N
 
 def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int, params,
           out: Path | None, progress: bool, push: float = 15.0,
-          apex_stiffness: float = 1e-9) -> dict:
+          apex_stiffness: float = 1e-9, dt_max: float = 0.05) -> dict:
     """One footing analysis; returns the factor, its curve summary, Newton figures, files.
 
-    ``push`` is the footing settlement in units of the elastic scale N·b/λ.
+    ``push`` is the footing settlement in units of the elastic scale N·b/λ; ``dt_max`` the
+    largest load step, as a fraction of the push (``contfab tradeoff fem_footing_nq``
+    measures its effect).
     """
     stress_scale = 1.0     # q (N_q) or γ b (N_γ): the scene's stress unit
     params = params.with_tier(0).replace("tier0", phi_deg=phi_deg, psi_deg=psi_deg) \
@@ -149,7 +151,8 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
     scale = reference if math.isfinite(reference) else prandtl_nq(phi_deg)
     delta = push * scale * B_HALF / lam
     increment = np.where(np.isin(fixed, dofs["footing_y"]), -delta, 0.0)
-    stages.append(Stage("push", fixed, increment, f_dead, dt0=0.02, dt_max=0.05, dt_min=1e-4))
+    stages.append(Stage("push", fixed, increment, f_dead, dt0=min(0.02, dt_max), dt_max=dt_max,
+                        dt_min=1e-4))
 
     def measure(s: Solver) -> dict:
         u = s.committed.u[dofs["footing_y"]]

@@ -319,6 +319,28 @@ def _run_stability(args) -> int:
     return 1 if res["counts"]["FAIL"] else 0
 
 
+# --------------------------------------------------------------------------- tradeoff
+
+def _add_tradeoff(p: argparse.ArgumentParser) -> None:
+    from contfab.tradeoff import STUDIES
+
+    p.add_argument("study", choices=[*STUDIES, "all"], help="which study ('all': every one, "
+                                                          "and DIR/tradeoff.md)")
+    p.add_argument("--out", required=True, help="output directory (points are reused on rerun)")
+    p.add_argument("--fast", action="store_true", help="the small preset the test suite runs")
+    _executor_args(p)
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
+def _run_tradeoff(args) -> None:
+    from contfab.tradeoff import run
+
+    written = run(args.study, args.out, args.fast, args.executor, args.workers, args.scheduler,
+                  progress=not args.quiet)
+    for what, f in written.items():
+        print(f"{what:>24}: {f}")
+
+
 COMMANDS = {
     "paths": (_add_paths, _run_paths, "list the standard loading paths, or show one"),
     "dem": (_add_dem, _run_dem, "the 2D disc-DEM RVE: prepare samples, run loading paths"),
@@ -334,6 +356,8 @@ COMMANDS = {
                                             "overlay plots and error metrics"),
     "stability": (_add_stability, _run_stability, "run the numerical-stability matrix (CSV and "
                                                   "PNG map of pass / clear error / accuracy lost / fail)"),
+    "tradeoff": (_add_tradeoff, _run_tradeoff, "speed against accuracy studies (CSV, PNG, "
+                                               "Markdown)"),
 }
 
 

@@ -128,9 +128,22 @@ def test_live_dem_matches_the_stored_dem_curves(live, name):
         assert abs(live_dem - stored_dem) <= tol, (q, live_dem, stored_dem)
 
 
+KNOWN_MODEL_FAILURES = {
+    ("biaxial_loose_k1000", 2): "tier 2's local solve fails (status -1) at τ ≈ 0.02 from the "
+                                "live sample's start state (c = 0.772, B = 0.146 at θp = -44°)",
+    ("isochoric_shear_dense_k1000", 1): "c drifts 0.835 -> 0.805 at ε_v = 0: c follows the plastic "
+                                        "volume change while P grows without bound",
+    ("isochoric_shear_dense_k1000", 2): "as tier 1: c drifts at ε_v = 0",
+}
+"""Model defects these live checks found (issue 4 notes); strict, so a fix shows up as a
+failure here and the entry must go."""
+
+
 @pytest.mark.parametrize("tier", [1, 2])
 @pytest.mark.parametrize("name", sorted(LIVE))
-def test_models_match_the_live_dem(live, name, tier):
+def test_models_match_the_live_dem(live, name, tier, request):
+    if (name, tier) in KNOWN_MODEL_FAILURES:
+        request.applymarker(pytest.mark.xfail(strict=True, reason=KNOWN_MODEL_FAILURES[name, tier]))
     out, _ = live
     path, density = LIVE[name]
     run = out / name / "dem" / "run"

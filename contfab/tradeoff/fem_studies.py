@@ -1,0 +1,80 @@
+"""FEM studies: the strip footing (``cases/strip_footing.py``) over element × mesh × load step.
+
+Each point is one footing analysis (tier 0, associated flow, the case's mesh family at
+``level``, largest load step ``dt_max`` as a fraction of the push); the error is
+|computed / exact - 1| of the bearing capacity factor: N_q against Prandtl–Reissner at the
+parameter file's φ (weightless soil with a surcharge), N_γ against Martin's (2005) exact
+14.75 at φ = 30° (rough footing). Cost: CPU seconds of the analysis.
+
+The model tier is not a knob here: the exact factors hold for the constant-φ cone (tier 0);
+tiers 1 and 2 carry φ(c) and the fabric, for which no closed form exists (their cost per
+point is measured by ``contfab bench model``).
+"""
+from __future__ import annotations
+
+import functools
+
+from contfab.cases import load_case
+from contfab.params import default_params
+from contfab.tradeoff.study import Clock, Study
+
+CASE_DEFAULT = {"element": "P3", "level": 1, "dt_max": 0.05}
+"""The footing case's own defaults (its element study's choice)."""
+
+
+def run_point(study: Study, point: dict) -> dict:
+    """One footing analysis at the point's element, level and load step."""
+    case = load_case("strip_footing")
+    factor = study.settings["factor"]
+    params = default_params()
+    _compiled(factor)
+    phi = 30.0 if factor == "Ngamma" else params.tier0.phi_deg
+    with Clock() as clock:
+        r = case.solve(phi, phi, factor, point["element"], point["level"], params, None, False,
+                       dt_max=point["dt_max"])
+    return {"values": {"computed": r["computed"], "reference": r["reference"], "dofs": r["dofs"],
+                       "steps": r["steps"]},
+            "wall_s": clock.wall, "cpu_s": clock.cpu, "cost": clock.cpu}
+
+
+@functools.cache
+def _compiled(factor: str) -> None:
+    """Compile (or load) the kernels once per process: a coarse P1 push in large steps."""
+    params = default_params()
+    load_case("strip_footing").solve(params.tier0.phi_deg, params.tier0.phi_deg, factor, "P1", 1,
+                                     params, None, False, dt_max=0.5)
+
+
+def evaluate(study, points, results):
+    factor = study.settings["factor"]
+    rows = [{"knobs": {k: p[k] for k in study.knobs},
+             **{k: r[k] for k in ("wall_s", "cpu_s", "cost")},
+             "errors": {factor: abs(r["values"]["computed"] / r["values"]["reference"] - 1.0)}}
+            for p, r in zip(points, results)]
+    notes = {"reference": results[0]["values"]["reference"],
+             "DOFs per point": [r["values"]["dofs"] for r in results],
+             "load steps per point": [r["values"]["steps"] for r in results]}
+    return rows, notes
+
+
+def _study(factor: str, fast: bool) -> Study:
+    if fast:
+        grid = [("P1", 1, 0.05), ("P2", 1, 0.05)]
+    else:
+        grid = [(e, lv, dt) for e in ("P2", "P3", "Q9") for lv in (1, 2, 3) for dt in (0.05, 0.2)]
+    symbol = {"Nq": "N_q (Prandtl–Reissner)", "Ngamma": "N_γ (Martin 2005, φ = 30°)"}[factor]
+    return Study(
+        name=f"fem_footing_{factor.lower()}", knobs=("element", "level", "dt_max"),
+        description=f"strip footing: element × mesh level × load step against {symbol}",
+        points=tuple({"element": e, "level": lv, "dt_max": dt} for e, lv, dt in grid),
+        run_point=run_point, evaluate=evaluate, default=CASE_DEFAULT, quantities=(factor,),
+        cost_unit="CPU s per analysis", error_meaning=f"|{factor} / exact - 1|",
+        settings={"factor": factor})
+
+
+def footing_nq_study(fast: bool) -> Study:
+    return _study("Nq", fast)
+
+
+def footing_ngamma_study(fast: bool) -> Study:
+    return _study("Ngamma", fast)

@@ -1,0 +1,155 @@
+"""Trade-off studies: the machinery (front, resume, files) and each study's --fast shape."""
+import numpy as np
+import pytest
+
+from contfab.cli import main
+from contfab.executor import ExecutorError
+from contfab.tradeoff import load_study, run
+from contfab.tradeoff.study import StudyError, pareto_front, point_key, run_study
+
+
+def _row(t, e):
+    return {"knobs": {}, "wall_s": 2 * t, "cpu_s": t, "cost": t, "errors": {"x": e}}
+
+
+def test_pareto_front_keeps_only_undominated_rows():
+    rows = [_row(1, 1.0), _row(2, 0.5), _row(3, 0.6), _row(4, 0.1), _row(0.5, 2.0),
+            _row(2, 0.5)]
+    # (3, 0.6) is beaten by (2, 0.5); equal rows do not dominate each other
+    assert pareto_front(rows) == [True, True, False, True, True, True]
+
+
+def test_point_key_is_stable_and_distinguishes_points():
+    assert point_key({"a": 1.0, "b": 2}) == point_key({"b": 2, "a": 1.0})
+    assert point_key({"a": 1.0}) != point_key({"a": 1.0000001})
+
+
+def test_unknown_study_or_executor_is_a_clean_error(tmp_path):
+    with pytest.raises(StudyError, match="unknown study 'nope'; available: point_increment"):
+        load_study("nope", True)
+    with pytest.raises(ExecutorError, match="executor 'nope' is not known; accepted: serial"):
+        run_study(load_study("point_increment", True), tmp_path, executor="nope")
+
+
+def test_point_increment_fast_is_first_order_resumable_and_writes_files(tmp_path, capsys):
+    assert main(["tradeoff", "point_increment", "--fast", "--quiet", "--out", str(tmp_path)]) == 0
+    folder = tmp_path / "point_increment"
+    table = np.genfromtxt(folder / "point_increment.csv", delimiter=",", names=True)
+    # error halves with the increment (first-order driver; Richardson reference): the
+    # fitted order is 1 within 0.15, and the finest run is the most accurate
+    h, err = table["increment"], table["error_RP"]
+    order = np.polyfit(np.log(h), np.log(err), 1)[0]
+    assert abs(order - 1.0) < 0.15
+    assert err[np.argmin(h)] == err.min() and table["error"].min() < 1e-3
+    assert (folder / "point_increment.png").stat().st_size > 10_000
+    md = (folder / "point_increment.md").read_text()
+    assert "| increment | wall s |" in md and "Richardson" in md
+    # a rerun reuses every point file: same numbers, no point recomputed
+    stamp = {f.name: f.stat().st_mtime_ns for f in (folder / "points").glob("*.json")}
+    assert len(stamp) == 4
+    assert main(["tradeoff", "point_increment", "--fast", "--quiet", "--out", str(tmp_path)]) == 0
+    assert {f.name: f.stat().st_mtime_ns for f in (folder / "points").glob("*.json")} == stamp
+    again = np.genfromtxt(folder / "point_increment.csv", delimiter=",", names=True)
+    assert np.array_equal(again["error"], table["error"])
+
+
+def _table(folder, name):
+    return np.genfromtxt(folder / name / f"{name}.csv", delimiter=",", names=True, dtype=None,
+                         encoding="utf-8")
+
+
+@pytest.fixture(scope="module")
+def dem_fast(tmp_path_factory):
+    """The three DEM studies at --fast (N = 64..256, I = 1e-1..1e-2, κ = 1e2..1e4)."""
+    out = tmp_path_factory.mktemp("dem")
+    for name in ("dem_size", "dem_inertial", "dem_stiffness"):
+        run(name, out, fast=True, progress=False)
+    return out
+
+
+def test_dem_size_fast_scatter_falls_with_n(dem_fast):
+    t = _table(dem_fast, "dem_size")
+    assert list(t["n"]) == [64, 128, 256]
+    # fluctuations of every steady-state quantity shrink from N = 64 to N = 256 (expected
+    # by a factor 2 for N^-1/2; measured 1.5-2.5 at this size, 2 seeds, 13 rows each)
+    for q in ("RP", "c", "z", "A", "B"):
+        assert t[f"error_{q}"][-1] < 0.85 * t[f"error_{q}"][0], q
+    md = (dem_fast / "dem_size" / "dem_size.md").read_text()
+    assert "beta (row scatter of RP ∝ N^-beta)" in md and "±" in md
+
+
+def test_dem_inertial_fast_error_falls_with_cost_toward_the_quasi_static_limit(dem_fast):
+    t = _table(dem_fast, "dem_inertial")
+    order = np.argsort(t["inertial"])          # slowest (most costly) first
+    err, cost = t["error_RP"][order], t["cost"][order]
+    # I = 1e-1 is far from quasi-static: R/P off by tens of percent, c by ~5 %; the error
+    # falls monotonically as I falls and the cost per unit strain rises
+    assert np.all(np.diff(err) > 0) and np.all(np.diff(cost) < 0)
+    assert err[-1] > 0.2 and t["error_c"][order][-1] > 0.02
+
+
+def test_dem_stiffness_fast_error_falls_with_cost_toward_the_rigid_limit(dem_fast):
+    t = _table(dem_fast, "dem_stiffness")
+    order = np.argsort(t["kappa"])[::-1]       # stiffest (most costly) first
+    # soft contacts overlap: c is ~4 % too high at κ = 100, below 0.5 % at κ >= 1e3;
+    # the time step ∝ κ^-1/2 makes the stiff runs the costly ones
+    assert np.all(np.diff(t["error_c"][order]) > 0) and np.all(np.diff(t["cost"][order]) < 0)
+    assert t["error_c"][order][-1] > 0.02 and t["error_c"][order][0] < 0.005
+
+
+def test_fem_footing_fast_quadratic_elements_buy_accuracy(tmp_path):
+    run("fem_footing_nq", tmp_path, fast=True, progress=False)
+    t = _table(tmp_path, "fem_footing_nq")
+    # P1 locks under isochoric flow: N_q ~9 % high on the level-1 mesh; P2 is within 3 %
+    # at more cost per analysis (4x the DOFs)
+    p1, p2 = (t[t["element"] == e] for e in ("P1", "P2"))
+    assert p1["error_Nq"][0] > 0.06 and p2["error_Nq"][0] < 0.03
+    assert p2["cpu_s"][0] > p1["cpu_s"][0]
+
+
+@pytest.mark.slow   # a DEM reference run plus three tiers: ~1 min of CPU with a cold cache
+def test_tier_biaxial_fast_tier1_carries_the_volume_change(tmp_path):
+    run("tier_biaxial", tmp_path, fast=True, progress=False)
+    t = _table(tmp_path, "tier_biaxial")
+    assert list(t["tier"]) == [0, 1, 2]
+    # a dense DEM sample dilates: tier 0 (constant ψ = 0, no c) misses ε_v by a few
+    # percent strain, tier 1's ψ(c) brings it within 1.5 %; tier 2 with the shipped a2 = b2 = 0
+    # follows tier 1's stress exactly, at more cost per increment
+    assert t["error_eps_v"][0] > 0.02 and t["error_eps_v"][1] < 0.015
+    assert abs(t["error_RP"][2] - t["error_RP"][1]) < 1e-6
+    assert t["cost"][2] > t["cost"][1]
+
+
+def _history(path):
+    from contfab import material_point as mp
+    from contfab.params import default_params
+    return mp.run_path(path, default_params(), 1, increment=4e-3).history
+
+
+def test_auto_tier_indicators_separate_monotonic_from_reversal():
+    from contfab.tradeoff.auto_tier import indicators
+    mono = indicators(_history("biaxial"), 0.81)
+    rev = indicators(_history("simple_shear_reversal"), 0.81)
+    # biaxial: axes fixed, no reversal; simple shear reversal: the deviator turns by 90°
+    # (α from 45° to -45°) and the deviatoric stress power goes negative at the reversal
+    assert mono.loading == "monotonic" and mono.axes_rotation_deg < 1.0 and not mono.reversal
+    assert rev.loading == "reversal" and rev.reversal and abs(rev.axes_rotation_deg - 90) < 1
+
+
+def test_auto_tier_picks_the_cheapest_tier_within_tolerance():
+    from contfab.tradeoff.auto_tier import AutoTierError, Indicators, choose
+    table = {"monotonic": [{"tier": 0, "error": 0.09, "cost": 40},
+                           {"tier": 1, "error": 0.03, "cost": 80},
+                           {"tier": 2, "error": 0.03, "cost": 140}],
+             "reversal": [{"tier": 0, "error": 0.2, "cost": 40},
+                          {"tier": 1, "error": 0.15, "cost": 80},
+                          {"tier": 2, "error": 0.05, "cost": 140}]}
+    mono, rev = Indicators(0.0, False, 0.01), Indicators(90.0, True, 0.01)
+    assert choose(mono, 0.1, table)[0] == 0
+    tier, why = choose(mono, 0.05, table)
+    assert tier == 1 and "monotonic loading" in why and "0.03 <= 0.05" in why
+    assert choose(rev, 0.05, table)[0] == 2
+    tier, why = choose(rev, 0.01, table)
+    assert tier == 2 and "no tier meets 0.01" in why
+    with pytest.raises(AutoTierError, match=r"tolerance = -1 out of range; accepted \(0, inf\)"):
+        choose(mono, -1, table)
