@@ -60,6 +60,7 @@ from contfab.fem.elements import ELEMENTS  # noqa: E402
 from contfab.fem.material import TierMaterial  # noqa: E402
 from contfab.fem.solver import NewtonOptions, Solver, Stage  # noqa: E402
 from contfab.material_point import run_path  # noqa: E402
+from contfab.models import tiers  # noqa: E402
 from contfab.params import ParamError, default_params, load_params  # noqa: E402
 from dem.conventions import fabric_polar  # noqa: E402
 from dem.fileio import write_csv  # noqa: E402
@@ -141,7 +142,8 @@ def solve(params, tier: int, element: str, nx: int, ny: int, dgamma: float,
                "syy": mean[1], "eps_v": float(c.u[top_y].mean() / HEIGHT)}
         state = np.average(c.state, axis=0, weights=disc.weights.ravel())
         if "c" in names:
-            row["c"] = state[names.index("c")]
+            row["c"] = float(tiers.packing_fraction(state[names.index("c")],
+                                                    -0.5 * (mean[0] + mean[1]), params))
         if "Bc" in names:
             b, theta = fabric_polar(state[names.index("Bc")], state[names.index("Bs")])
             row["B"], row["theta_p"] = float(b), math.degrees(theta)

@@ -56,8 +56,10 @@ model sees σ_model = p_ref · σ_path, and the history reports σ_model / p_ref
 
 **History.** Rows at τ = 0 and at every output time, and at each stage end, with the
 columns :data:`dem.history.HISTORY_COLUMNS` (fabric columns absent for tiers without a
-fabric) plus :data:`EXTRA_COLUMNS`. c is the tier's state c for tiers >= 1, and
-c0 exp(-ε_v) for tier 0 (which carries no c; empty without an ``[initial]`` section).
+fabric) plus :data:`EXTRA_COLUMNS`. c is the packing fraction the DEM measures (disc area
+/ cell area, following the total strain): for tiers >= 1 :func:`contfab.models.tiers.
+packing_fraction` of the state's hardening variable c_p (its own column, ``c_p``), for
+tier 0 (no state) c0 exp(-ε_v) (empty without an ``[initial]`` section).
 """
 from __future__ import annotations
 
@@ -70,7 +72,7 @@ from typing import Mapping
 import numba
 import numpy as np
 
-from dem.conventions import admissibility_margin, fabric_polar
+from dem.conventions import admissibility_margin, fabric_polar, pressure
 from dem.history import HISTORY_COLUMNS, history_row
 from dem.paths import COMPONENTS, STRESS_INDEX, Path, Stage, load_path
 from contfab.models import tiers
@@ -90,9 +92,10 @@ STOP_RTOL = 1e-10
 STOP_MAXIT = 60
 
 FABRIC_COLUMNS = ("z", "A", "Bc", "Bs", "B", "theta_p")
-EXTRA_COLUMNS = ("gp", "omega", "increments")
+EXTRA_COLUMNS = ("gp", "c_p", "omega", "increments")
 """Driver columns after the shared ones: accumulated plastic shear strain Σ(Δεp1 - Δεp2),
-accumulated spin angle ∫ω dτ (radians), and increments taken since the path start."""
+the hardening packing fraction c_p (tiers >= 1; module doc), accumulated spin angle ∫ω dτ
+(radians), and increments taken since the path start."""
 
 STRAIN_OF_L = np.array([[1.0, 0.0, 0.0, 0.0],
                         [0.0, 1.0, 0.0, 0.0],
@@ -230,6 +233,9 @@ class PointResult:
     state: np.ndarray
     stats: Mapping[str, object]
 
+    def __contains__(self, column: str) -> bool:
+        return column in self.history
+
     def __getitem__(self, column: str) -> np.ndarray:
         if column not in self.history:
             raise KeyError(f"no column {column!r} in this history (tier {self.tier}); "
@@ -303,7 +309,8 @@ class _Runner:
         self.columns = tuple(
             c for c in HISTORY_COLUMNS + EXTRA_COLUMNS
             if not (c in FABRIC_COLUMNS and self.i_fabric is None)
-            and not (c == "c" and self.i_c is None and self.c0 is None))
+            and not (c == "c" and self.i_c is None and self.c0 is None)
+            and not (c == "c_p" and self.i_c is None))
         for k, stage in enumerate(path.stages):
             for cond in stage.until:
                 if cond.quantity not in self.columns:
@@ -324,7 +331,8 @@ class _Runner:
 
     def row(self, pt: _Point, stage: int) -> dict:
         if self.i_c is not None:
-            c = pt.state[self.i_c]
+            c = float(tiers.packing_fraction(pt.state[self.i_c], pressure(pt.stress[0], pt.stress[1]),
+                                            self.params))
         elif self.c0 is not None:
             c = self.c0 * math.exp(-(pt.strain[0] + pt.strain[1]))
         else:
@@ -332,6 +340,8 @@ class _Runner:
         fabric = pt.state[self.i_fabric] if self.i_fabric is not None else None
         row = history_row(stage, pt.tau, pt.stress / self.p_ref, pt.strain, c, fabric)
         row.update(gp=float(pt.state[0]), omega=pt.omega, increments=pt.increments)
+        if self.i_c is not None:
+            row["c_p"] = float(pt.state[self.i_c])
         return row
 
     def emit(self, pt: _Point, stage: int) -> None:
