@@ -33,9 +33,10 @@ def test_anisotropic_tier2_case_starts_from_an_anisotropic_fabric_on_the_yield_s
     assert prm[10] != 0.0                       # the calibrated planes are anisotropic (a2)
     stress, state, dstrain, dspin = model.yielding_points(params, 2, 500, anisotropic=True)
     ratio = np.hypot(state[:, 3], state[:, 4]) / state[:, 2]
-    # the shear onto the surface relaxes the start fabric (B/A = B_RATIO along a random θp)
-    # toward the critical fabric of the shear direction: B/A 0.04-0.24 measured, never 0
-    assert np.all((ratio > 0.02) & (ratio < model.B_RATIO + 0.02)), (ratio.min(), ratio.max())
+    # the start fabric (B/A = B_RATIO along the shear's compression axis) is the critical one
+    # of that shear to within the calibration (b_ratio_crit), so the shear onto the surface
+    # keeps it anisotropic and aligned
+    assert np.all(np.abs(ratio - model.B_RATIO) < 0.05), (ratio.min(), ratio.max())
     for i in range(0, 500, 50):
         fab = fabric_terms(prm, *state[i, 1:])
         scale = np.hypot(0.5 * (stress[i, 0] + stress[i, 1]),

@@ -5,7 +5,8 @@ p_ref, random principal directions) loaded further along their deviator by a str
 increment of 1e-4 with a small random spin, so every point takes the plastic branch
 (the benchmark reports the plastic fraction). All cases use the shipped (calibrated)
 parameters. Tier 2 is measured twice: from the ``[initial]`` isotropic fabric, and as
-``tier2_aniso`` from an anisotropic one (B/A = :data:`B_RATIO`, θp random), where the
+``tier2_aniso`` from an anisotropic one (B/A = :data:`B_RATIO` along the compression axis of
+each point's random shear direction), where the
 plane search and the fabric coupling do their full work. The kernel runs on one thread with preallocated outputs; the reference is
 a plain numpy elastic update σ + C Δε of the same points in the same run, and each case's
 rate is also given as a ratio to it. Timings are medians of ``--repeats`` runs of the
@@ -37,9 +38,10 @@ def yielding_points(params, tier: int, n: int, seed: int = 0, anisotropic: bool 
     """(stress_n, state_n, dstrain, dspin): points on the yield surface, loaded further.
 
     Tier-agnostic: isotropic stresses (P in [0.5, 2] p_ref, the ``[initial]`` state with c
-    spread over c0 ± 0.01; with ``anisotropic`` the fabric has B = B_RATIO·A along a random
-    θp) are first sheared far past yield by one update, which returns them onto the yield
-    surface; the benchmark increment continues that shear by STRAIN.
+    spread over c0 ± 0.01; with ``anisotropic`` the fabric has B = B_RATIO·A with θp along
+    the compression axis of the point's shear, the DEM's steady biaxial fabric) are first
+    sheared far past yield by one update, which returns them onto the yield surface; the
+    benchmark increment continues that shear by STRAIN.
     """
     rng = np.random.default_rng(seed)
     p = params.p_ref * rng.uniform(0.5, 2.0, n)
@@ -52,7 +54,7 @@ def yielding_points(params, tier: int, n: int, seed: int = 0, anisotropic: bool 
         state[:, names.index("c")] += rng.uniform(-0.01, 0.01, n)
     if anisotropic:
         b = B_RATIO * state[:, names.index("A")]
-        two_theta_p = 2.0 * rng.uniform(0.0, np.pi, n)
+        two_theta_p = two + np.pi      # the shear extends along two/2: compression at +90°
         state[:, names.index("Bc")] = b * np.cos(two_theta_p)
         state[:, names.index("Bs")] = b * np.sin(two_theta_p)
     shear = params.array(tier)[1]
