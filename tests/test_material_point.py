@@ -333,17 +333,21 @@ def test_stop_condition_is_located_inside_the_increment():
     assert ends[0] == pytest.approx(ends[1], rel=0.05)      # the same strain, to O(h)
 
 
-def test_unreachable_stress_target_is_a_clear_error_with_the_partial_history():
-    """σyy ramped to -3 P0 at σxx = -P0 asks for R/P = 0.5 > sin φ = 0.37 (tier 0)."""
+@pytest.mark.parametrize("phi, increment", [(22.0, 1e-2), (15.8, 1e-3)])
+def test_unreachable_stress_target_is_a_clear_error_with_the_partial_history(phi, increment):
+    """σyy ramped to -3 P0 at σxx = -P0 asks for R/P = 0.5 > sin φ (tier 0). At φ = 15.8°
+    the unknown strain ran away to -4e14 at the apex (σ = 0) and its round-off allowance
+    passed the residual: a silently wrong history, until TOL_CAP."""
     path = stage_path("too_far", 0.1, 0.01, {"xy": 0.0, "yx": 0.0},
                       {"xx": -1.0, "yy": {"target": -3.0, "ramp": True}})
+    params = fixed_params().replace("tier0", phi_deg=phi)
     with pytest.raises(mp.IntegrationError) as err:
-        mp.run_path(path, fixed_params(), 0, increment=1e-2)
+        mp.run_path(path, params, 0, increment=increment)
     msg = str(err.value)
     assert "stage 0 ('too_far')" in msg and "min_increment" in msg
     assert "yield cone" in msg and err.value.partial is not None
     partial = err.value.partial
-    assert partial["RP"][-1] < np.sin(np.radians(22.0)) + 1e-9 and len(partial["tau"]) >= 2
+    assert partial["RP"][-1] < np.sin(np.radians(phi)) + 1e-9 and len(partial["tau"]) >= 2
 
 
 def test_step_cutting_recovers_from_a_failed_update(monkeypatch):
