@@ -162,3 +162,16 @@ def test_models_match_the_live_dem(live, name, tier, request):
     for q, tol in LIVE_MODEL.items():
         assert abs(e[q]["residual_error"]) <= tol, (q, e[q])
     assert math.isfinite(e["RP"]["rms"]) and np.isfinite(target.curve.mean["RP"]).all()
+
+
+def test_a_perturbed_dem_is_caught(tmp_path):
+    """The DEM with friction μ = 0.3 instead of 0.5 on the live loose biaxial: its steady c
+    leaves the stored seed mean by more than LIVE_DEM (measured 0.8214 against 0.8101; R/P
+    0.256 against 0.272 stays inside its tolerance, so c is what catches it)."""
+    name, (path, density) = "biaxial_loose_k1000", LIVE["biaxial_loose_k1000"]
+    compare(path, tmp_path, str(REF / "params.toml"), 1, n=LIVE_N, seed=LIVE_SEED, kappa=1e3,
+            density=density, mu=0.3)
+    live_err = json.loads((tmp_path / "errors.json").read_text())["errors"][path]
+    stored = INDEX["curves"][name]["errors"]["tier 1"]
+    off = {q: abs(live_err[q]["residual_dem"] - stored[q]["residual_dem"]) for q in LIVE_DEM}
+    assert any(off[q] > tol for q, tol in LIVE_DEM.items()), off
