@@ -157,8 +157,10 @@ def add_arguments(p) -> None:
 
 def run(args) -> CaseResult:
     params = default_params() if args.params is None else load_params(args.params)
-    if args.fast:   # the test-suite preset: P2 on the level-1 mesh
-        args.element, args.level = "P2", 1
+    if args.fast:   # the test-suite preset: P2 on the level-2 mesh (the default), because at
+        # level 1 (1394 DOFs, 8 elements across) the band sits at 47 deg against Roscoe's
+        # 53.7 with the calibrated parameters: too coarse to resolve it (level 2: 53.5)
+        args.element, args.level = "P2", 2
     r = solve(params, args.element, args.level, args.dense, args.strain, args.out, not args.quiet)
     coulomb = 45 + r["phi0"] / 2
     roscoe = 45 + r["psi0"] / 2

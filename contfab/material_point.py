@@ -30,7 +30,8 @@ gives, without any further derivative from the kernel,
       = (-2 s_xy, 2 s_xy, s_xx - s_yy) for a stress, (-Δγ, Δγ, 2(Δε_xx - Δε_yy)) for Δε.
 
 The solve starts from the previous increment's rates of the unknowns. It has converged
-when max |r| <= RTOL · s + ROUNDOFF · (s + E_reg max |Δε|), s = max(|σ_n|, |σ*|) (scale-free:
+when max |r| <= min(RTOL · s + ROUNDOFF · (s + E_reg max |Δε|), TOL_CAP · s), s = max(|σ_n|, |σ*|)
+(scale-free:
 the model has no stress scale besides the regularization's E_reg = λ p_ref, whose C Δε
 sets the round-off of the trial stress).
 
@@ -56,8 +57,10 @@ model sees σ_model = p_ref · σ_path, and the history reports σ_model / p_ref
 
 **History.** Rows at τ = 0 and at every output time, and at each stage end, with the
 columns :data:`dem.history.HISTORY_COLUMNS` (fabric columns absent for tiers without a
-fabric) plus :data:`EXTRA_COLUMNS`. c is the tier's state c for tiers >= 1, and
-c0 exp(-ε_v) for tier 0 (which carries no c; empty without an ``[initial]`` section).
+fabric) plus :data:`EXTRA_COLUMNS`. c is the packing fraction the DEM measures (disc area
+/ cell area, following the total strain): for tiers >= 1 :func:`contfab.models.tiers.
+packing_fraction` of the state's hardening variable c_p (its own column, ``c_p``), for
+tier 0 (no state) c0 exp(-ε_v) (empty without an ``[initial]`` section).
 """
 from __future__ import annotations
 
@@ -70,7 +73,7 @@ from typing import Mapping
 import numba
 import numpy as np
 
-from dem.conventions import admissibility_margin, fabric_polar
+from dem.conventions import admissibility_margin, fabric_polar, pressure
 from dem.history import HISTORY_COLUMNS, history_row
 from dem.paths import COMPONENTS, STRESS_INDEX, Path, Stage, load_path
 from contfab.models import tiers
@@ -80,6 +83,12 @@ RTOL = 1e-12
 """Newton tolerance on the stress targets, relative to the stress level (module doc)."""
 ROUNDOFF = 64.0 * np.finfo(float).eps
 """Round-off floor of the stress residual, relative to the trial stress magnitude."""
+TOL_CAP = 1e-6
+"""The round-off allowance never exceeds this fraction of the stress level: it grows with
+E_reg |Δε| (the trial stress's round-off), and an unknown strain running away at a stress
+target the model cannot carry (measured: Δε_yy = -4e14 at the apex, σ = 0 against a
+target of -3 P0) must not make any residual pass. Legitimate increments stay far below
+it (λ = 1e8, |Δε| = 0.1: 1.4e-7)."""
 NEWTON_MAXIT = 25
 DEFAULT_INCREMENT = 1e-3
 """Default increment Δτ_max (reference strain); see ``contfab bench point`` for its error."""
@@ -90,9 +99,10 @@ STOP_RTOL = 1e-10
 STOP_MAXIT = 60
 
 FABRIC_COLUMNS = ("z", "A", "Bc", "Bs", "B", "theta_p")
-EXTRA_COLUMNS = ("gp", "omega", "increments")
+EXTRA_COLUMNS = ("gp", "c_p", "omega", "increments")
 """Driver columns after the shared ones: accumulated plastic shear strain Σ(Δεp1 - Δεp2),
-accumulated spin angle ∫ω dτ (radians), and increments taken since the path start."""
+the hardening packing fraction c_p (tiers >= 1; module doc), accumulated spin angle ∫ω dτ
+(radians), and increments taken since the path start."""
 
 STRAIN_OF_L = np.array([[1.0, 0.0, 0.0, 0.0],
                         [0.0, 1.0, 0.0, 0.0],
@@ -189,7 +199,8 @@ def solve_increment(tier: int, params: Params, stress_n: np.ndarray, state_n: np
         err = max(map(abs, r), default=0.0)
         if cols:
             residuals.append(err)
-        tol = rtol * scale + ROUNDOFF * (scale + e_reg * max(abs(d[0]), abs(d[1]), abs(d[2] + d[3])))
+        tol = min(rtol * scale + ROUNDOFF * (scale + e_reg * max(abs(d[0]), abs(d[1]), abs(d[2] + d[3]))),
+                  TOL_CAP * scale)
         if err <= tol:
             return StepSolution(True, dl, out.stress[0].copy(), out.state[0].copy(), status,
                                 residuals, it + 1)
@@ -229,6 +240,9 @@ class PointResult:
     stress: np.ndarray
     state: np.ndarray
     stats: Mapping[str, object]
+
+    def __contains__(self, column: str) -> bool:
+        return column in self.history
 
     def __getitem__(self, column: str) -> np.ndarray:
         if column not in self.history:
@@ -303,7 +317,8 @@ class _Runner:
         self.columns = tuple(
             c for c in HISTORY_COLUMNS + EXTRA_COLUMNS
             if not (c in FABRIC_COLUMNS and self.i_fabric is None)
-            and not (c == "c" and self.i_c is None and self.c0 is None))
+            and not (c == "c" and self.i_c is None and self.c0 is None)
+            and not (c == "c_p" and self.i_c is None))
         for k, stage in enumerate(path.stages):
             for cond in stage.until:
                 if cond.quantity not in self.columns:
@@ -324,7 +339,8 @@ class _Runner:
 
     def row(self, pt: _Point, stage: int) -> dict:
         if self.i_c is not None:
-            c = pt.state[self.i_c]
+            c = float(tiers.packing_fraction(pt.state[self.i_c], pressure(pt.stress[0], pt.stress[1]),
+                                            self.params))
         elif self.c0 is not None:
             c = self.c0 * math.exp(-(pt.strain[0] + pt.strain[1]))
         else:
@@ -332,6 +348,8 @@ class _Runner:
         fabric = pt.state[self.i_fabric] if self.i_fabric is not None else None
         row = history_row(stage, pt.tau, pt.stress / self.p_ref, pt.strain, c, fabric)
         row.update(gp=float(pt.state[0]), omega=pt.omega, increments=pt.increments)
+        if self.i_c is not None:
+            row["c_p"] = float(pt.state[self.i_c])
         return row
 
     def emit(self, pt: _Point, stage: int) -> None:

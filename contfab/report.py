@@ -43,9 +43,9 @@ def overlay_plot(curve: DemCurve, models: Mapping[str, Mapping[str, np.ndarray]]
         if np.any(np.isfinite(m)):
             ax.fill_between(x, m - s, m + s, color="0.8", lw=0)
             ax.plot(x, m, "k-", lw=1.6, label="DEM (seed mean ± sd)")
-        for name, sample in models.items():
+        for k, (name, sample) in enumerate(models.items()):
             if q in sample and np.any(np.isfinite(sample[q])):
-                ax.plot(x, sample[q] * scale, lw=1.2, label=name)
+                ax.plot(x, sample[q] * scale, lw=1.2, label=name, color=f"C{k}")  # one colour a model
         ax.set_ylabel(LABELS[q])
         ax.grid(alpha=0.3)
     for ax in axes[-1]:

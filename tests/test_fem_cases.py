@@ -10,21 +10,26 @@ import pytest
 
 from contfab.cases import run_case
 from contfab.cli import main
+from contfab.params import default_params
+
+PHI = default_params().tier0.phi_deg
+"""The shipped (calibrated) tier-0 friction angle, φ* of the DEM: the cases' default φ."""
 
 
 def test_strip_footing_nq_fast_within_4_percent_and_json(tmp_path, capsys):
-    """N_q (φ = 22°, associated, P2 level 1: +2.2 % measured) against Prandtl-Reissner."""
+    """N_q (the shipped φ = φ* = 15.66°, associated, P2 level 1) against Prandtl-Reissner."""
     code = main(["case", "strip_footing", "--fast", "--json", "--quiet", "--out", str(tmp_path)])
     assert code == 0
     out = json.loads(capsys.readouterr().out)
-    reference = math.exp(math.pi * math.tan(math.radians(22))) * math.tan(math.radians(56)) ** 2
+    reference = (math.exp(math.pi * math.tan(math.radians(PHI)))
+                 * math.tan(math.radians(45 + PHI / 2)) ** 2)
     assert out["reference"] == pytest.approx(reference, rel=1e-12)
     assert 0 < out["relative_error"] < 0.04            # displacement FE: from above
     assert out["computed"] == pytest.approx(reference * (1 + out["relative_error"]))
     names = {p.name for p in tmp_path.iterdir()}
-    assert {"strip_footing_Nq_phi22_psi22.pvd", "strip_footing_Nq_phi22_psi22_curve.csv",
-            "strip_footing_Nq_phi22_psi22_plastic_zone.png"} <= names
-    note = out["N_q(phi=22, psi=22)"]
+    stem = f"strip_footing_Nq_phi{PHI:g}_psi{PHI:g}"
+    assert {f"{stem}.pvd", f"{stem}_curve.csv", f"{stem}_plastic_zone.png"} <= names
+    note = out[f"N_q(phi={PHI:g}, psi={PHI:g})"]
     assert abs(note["plateau_drift"]) < 1e-3 and note["median_newton"] < 8
 
 
@@ -32,7 +37,7 @@ def test_newton_converges_quadratically_on_the_collapse_plateau():
     """The last step of the footing push (at collapse): the error order of the last
     three residuals is >= 1.5 (2 for Newton), ending below the 1e-8 tolerance."""
     result = run_case("strip_footing", ["--fast", "--quiet", "--out", "none"])
-    r = result.notes["N_q(phi=22, psi=22)"]["last_step_residuals"]
+    r = result.notes[f"N_q(phi={PHI:g}, psi={PHI:g})"]["last_step_residuals"]
     assert r[-1] <= 1e-8 and len(r) >= 3
     order = math.log(r[-1] / r[-2]) / math.log(r[-2] / r[-3])
     assert order >= 1.5, r
@@ -41,9 +46,9 @@ def test_newton_converges_quadratically_on_the_collapse_plateau():
 def test_retaining_wall_fast_within_3_percent_of_rankine():
     result = run_case("retaining_wall", ["--fast", "--quiet", "--out", "none"])
     errors = {f.name: f.relative_error for f in result.figures}
-    assert set(errors) == {"K_a(phi=22)", "K_p(phi=22)"}
+    assert set(errors) == {f"K_a(phi={PHI:g})", f"K_p(phi={PHI:g})"}
     assert all(abs(e) < 0.03 for e in errors.values()), errors
-    assert errors["K_a(phi=22)"] < 0 < errors["K_p(phi=22)"]    # stiff FE: K_a low, K_p high
+    assert errors[f"K_a(phi={PHI:g})"] < 0 < errors[f"K_p(phi={PHI:g})"]   # stiff FE: K_a low, K_p high
 
 
 def test_biaxial_band_angle_within_5_degrees_of_roscoe_coulomb_and_softening():
@@ -96,7 +101,10 @@ def test_simple_shear_reversal_fast_against_the_point_driver_and_the_dem(tmp_pat
     for f in out["figures"]:
         row = expected[f["name"].split("gamma = ")[1].split(" ")[0]]
         assert f["reference"] == pytest.approx(float(row["sxy"]) / -float(row["syy"]), rel=1e-9)
-    assert out["tier1"]["max_dev_vs_point"] < 1e-6
+    # the layer and the driver integrate the same update on different step grids (the FEM's
+    # Δγ = 0.05 after a dt/4 start, the driver's 0.01 output rows); from the DEM's start
+    # (c0 - c* = 0.0023) c evolves, so they differ at O(Δγ): 6.1e-4 measured (1e-13 at c*)
+    assert out["tier1"]["max_dev_vs_point"] < 2e-3
     t2 = out["tier2"]
     assert t2["theta_p_at_gamma_1"] < 0 < t2["theta_p_at_gamma_-1"]
     assert t2["dem_theta_p_at_gamma_1"] < 0 < t2["dem_theta_p_at_gamma_-1"]

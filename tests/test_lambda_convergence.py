@@ -37,7 +37,7 @@ def test_results_converge_at_first_order_in_one_over_lambda():
         params = base.replace("regularization", lam=lam)
         runs = [mp.run_path(BIAXIAL, params, 1, increment=STRAIN / 200, state0={"c": c})
                 for c in C0]
-        c_end = np.array([r["c"][-1] for r in runs])
+        c_end = np.array([r["c_p"][-1] for r in runs])
         syy_end = np.array([r["syy"][-1] for r in runs])
         finals[lam] = c_end, syy_end
         # at yield the stress is the rigid-plastic one for the current c, at any λ:

@@ -170,7 +170,8 @@ def test_isotropic_ramp_and_probes_inside_the_cone_are_elastic_closed_form(tier)
 
 def test_tier1_dense_and_loose_reach_the_critical_state():
     """Biaxial compression to 200% axial strain: dense (c0 = 0.83) dilates and softens,
-    loose (0.79) contracts and hardens, both end at c = c*, R/P = sin φ* to 1e-6."""
+    loose (0.79) contracts and hardens, both end at c_p = c*, R/P = sin φ* to 1e-6; the
+    reported packing fraction c is the kinematic one, c0 exp(-ε_v), at every row."""
     params = fixed_params()
     path = biaxial(2.0, 0.01)
     c_star = params.tier1.c_star
@@ -178,9 +179,14 @@ def test_tier1_dense_and_loose_reach_the_critical_state():
     dense = mp.run_path(path, params, 1, state0={"c": 0.83})
     loose = mp.run_path(path, params, 1, state0={"c": 0.79})
     for res in (dense, loose):
-        assert res["c"][-1] == pytest.approx(c_star, abs=1e-6)
+        assert res["c_p"][-1] == pytest.approx(c_star, abs=1e-6)
         assert res["RP"][-1] == pytest.approx(sin_star, abs=1e-6)
-    assert np.all(np.diff(dense["c"]) <= 0) and np.all(np.diff(loose["c"]) >= 0)
+        # c = c_p exp((P - p_ref)/K) is the DEM's c = c0 exp(-ε_v): the plastic volume change
+        # moves c_p, the elastic one -ΔP/K the rest (λ = 1000, ν = 0 here: K = 500)
+        assert res["c"] == pytest.approx(res["c"][0] * np.exp(-res["eps_v"]), rel=1e-12)
+        assert res["c"][-1] - res["c_p"][-1] == pytest.approx(
+            c_star * np.expm1((res["P"][-1] - 1.0) / params.regularization.moduli()[0]), rel=1e-6)
+    assert np.all(np.diff(dense["c_p"]) <= 0) and np.all(np.diff(loose["c_p"]) >= 0)
     assert np.all(np.diff(dense["eps_v"][1:]) > -1e-12)       # dilates
     assert np.all(np.diff(loose["eps_v"][1:]) < 1e-12)        # contracts
     peak = np.argmax(dense["RP"])
@@ -190,7 +196,7 @@ def test_tier1_dense_and_loose_reach_the_critical_state():
     # the stress ratio is the yield one of the current c at every row past the first
     prm = params.array(1)
     for res in (dense, loose):
-        sphi = np.sin([friction_angles(c, *prm[2:])[0] for c in res["c"][2:]])
+        sphi = np.sin([friction_angles(c, *prm[2:])[0] for c in res["c_p"][2:]])
         assert res["RP"][2:] == pytest.approx(sphi, rel=1e-10)
 
 
@@ -301,7 +307,7 @@ def test_tier1_rotation_below_the_cone_is_rigid_up_to_the_regularization():
     peak = {}
     for lam in (1e3, 1e4, 1e5):
         res = mp.run_path("axes_rotation", fixed_params().replace("regularization", lam=lam), 1)
-        assert np.all(res["gp"] == 0.0) and np.all(res["c"] == res["c"][0])
+        assert np.all(res["gp"] == 0.0) and np.all(res["c_p"] == res["c_p"][0])
         strain = np.stack([res["eps_xx"], res["eps_yy"], res["eps_xy"]], 1)
         peak[lam] = np.abs(strain).max()
     # order 1 in 1/λ: λ·peak = 0.30014, 0.300014, 0.3000014 (measured; the deviator
@@ -327,17 +333,21 @@ def test_stop_condition_is_located_inside_the_increment():
     assert ends[0] == pytest.approx(ends[1], rel=0.05)      # the same strain, to O(h)
 
 
-def test_unreachable_stress_target_is_a_clear_error_with_the_partial_history():
-    """σyy ramped to -3 P0 at σxx = -P0 asks for R/P = 0.5 > sin φ = 0.37 (tier 0)."""
+@pytest.mark.parametrize("phi, increment", [(22.0, 1e-2), (15.8, 1e-3)])
+def test_unreachable_stress_target_is_a_clear_error_with_the_partial_history(phi, increment):
+    """σyy ramped to -3 P0 at σxx = -P0 asks for R/P = 0.5 > sin φ (tier 0). At φ = 15.8°
+    the unknown strain ran away to -4e14 at the apex (σ = 0) and its round-off allowance
+    passed the residual: a silently wrong history, until TOL_CAP."""
     path = stage_path("too_far", 0.1, 0.01, {"xy": 0.0, "yx": 0.0},
                       {"xx": -1.0, "yy": {"target": -3.0, "ramp": True}})
+    params = fixed_params().replace("tier0", phi_deg=phi)
     with pytest.raises(mp.IntegrationError) as err:
-        mp.run_path(path, fixed_params(), 0, increment=1e-2)
+        mp.run_path(path, params, 0, increment=increment)
     msg = str(err.value)
     assert "stage 0 ('too_far')" in msg and "min_increment" in msg
     assert "yield cone" in msg and err.value.partial is not None
     partial = err.value.partial
-    assert partial["RP"][-1] < np.sin(np.radians(22.0)) + 1e-9 and len(partial["tau"]) >= 2
+    assert partial["RP"][-1] < np.sin(np.radians(phi)) + 1e-9 and len(partial["tau"]) >= 2
 
 
 def test_step_cutting_recovers_from_a_failed_update(monkeypatch):

@@ -44,7 +44,7 @@ def test_model_probes_from_a_state_on_the_yield_surface_give_the_cone_angles(tie
     assert all(r["sxx"][0] == pre["sxx"][-1] and r["tau"][0] == 0.0 for r in runs)
     a = analyse(probe_response([history_of(r) for r in runs]))
     t1 = PARAMS.tier1
-    c = pre["c"][-1]
+    c = pre["c_p"][-1]
     sphi = math.sin(math.radians(t1.phi_star_deg + t1.dphi_dc_deg * (c - t1.c_star)))
     spsi = math.sin(math.radians(t1.dpsi_dc_deg * (c - t1.c_star)))
     assert pre["RP"][-1] == pytest.approx(sphi, rel=1e-9)                # on the yield surface

@@ -121,9 +121,12 @@ def test_tier_biaxial_fast_tier1_carries_the_volume_change(tmp_path):
 
 
 def _history(path):
+    """Tier 1 at the critical state (c = c*, ψ = 0: simple shear is isochoric and its
+    principal axes sit at exactly ±45°; a dense start dilates and tilts them)."""
     from contfab import material_point as mp
     from contfab.params import default_params
-    return mp.run_path(path, default_params(), 1, increment=4e-3).history
+    params = default_params()
+    return mp.run_path(path, params, 1, increment=4e-3, state0={"c": params.tier1.c_star}).history
 
 
 def test_auto_tier_indicators_separate_monotonic_from_reversal():

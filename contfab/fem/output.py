@@ -8,8 +8,9 @@ Fields of a frame (tension positive, DESIGN §2): point data ``displacement`` at
 mesh vertices; cell data (area-weighted means over each element's quadrature
 points) ``stress`` (symmetric tensor xx, yy, zz, xy, yz, xz with zz = yz = xz = 0),
 ``P`` = -(sxx+syy)/2, ``R_over_P`` = R/P (sin of the mobilized friction angle; 0
-where P <= 0), the model state columns (``gp`` plastic shear strain, ``c``,
-``A``), for the fabric tier ``B`` and ``director`` = (cos θp, sin θp, 0), and
+where P <= 0), the model state columns (``gp`` plastic shear strain, ``c`` the
+hardening packing fraction c_p of :func:`contfab.models.tiers.packing_fraction`, which
+differs from the kinematic one by (P - p_ref)/K ~ 1/λ, ``A``), for the fabric tier ``B`` and ``director`` = (cos θp, sin θp, 0), and
 ``yield`` = the fraction of the element's points that yielded in the last step
 (status 1 or 2) and ``apex`` = the fraction at the apex (status 2).
 """

@@ -247,7 +247,7 @@ def run_path_check(tier: int, prm: Params, path, increment: float = 1e-2, state0
         if tier == 0:
             sphi = math.sin(math.radians(prm.tier0.phi_deg))
         else:
-            sphi = math.sin(cone.friction_angles(res["c"][-1], *prm.array(1)[2:])[0])
+            sphi = math.sin(cone.friction_angles(res["c_p"][-1], *prm.array(1)[2:])[0])
         cone_err = abs(res["R"][-1] - sphi * res["P"][-1]) / res["P"][-1]
         err = max(err, cone_err)
         notes.append(f"end R/P - sin(phi) = {cone_err:.2g}")

@@ -67,7 +67,7 @@ def indicators(history: Mapping[str, np.ndarray], c_star: float) -> Indicators:
     power = 0.5 * (sxx[start] - syy[start]) * (dexx - deyy) + sxy[start] * dgam
     positive = np.maximum.accumulate((power > 0) & mobilized[start])
     reversal = bool(np.any(positive & (power < 0)))
-    c = np.asarray(history["c"], float)
+    c = np.asarray(history["c_p" if "c_p" in history else "c"], float)   # the hardening c
     dist = float(np.nanmax(np.abs(c - c_star))) if np.any(np.isfinite(c)) else math.nan
     return Indicators(float(turn.max()), reversal, dist)
 
