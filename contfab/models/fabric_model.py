@@ -152,7 +152,7 @@ Scratch = namedtuple("Scratch", "ttr x theta pl yf res jac piv dx xt x0 dth dpz 
 def _scratch():
     return Scratch(np.empty(3), np.empty(N_X), np.zeros(2), np.empty((2, N_PL)), np.empty(N_YF),
                    np.empty(N_X), np.empty((N_X, N_X)), np.empty(N_X, dtype=np.int64),
-                   np.empty(N_X), np.empty(N_X), np.empty(2), np.empty(2), np.empty((N_P, 4)),
+                   np.empty(N_X), np.empty(N_X), np.empty(N_X), np.empty(2), np.empty((N_P, 4)),
                    np.empty(3), np.empty((4, 3)), np.empty(N_WORK))
 
 
