@@ -25,7 +25,13 @@ Yield f and flow N: :mod:`contfab.models.slip_planes`; fabric laws:
    (near the surface) or tier 1's closed-form coaxial return; backtracking on max |residual|.
    Where Newton fails from both (increments of hundreds of percent), the same problem is
    reached by continuation in the trial stress (:func:`_continuation_return`).
-   The face solution is accepted when it converged with Δγ >= 0 and P > 0 (status 1).
+   The face solution is accepted when it converged with Δγ >= 0 and P > 0 and its planes
+   are the arcs' maxima (status 1): where φ depends on θ an arc can have several local
+   maxima (its ends, corners of the clamp of φ: slip_planes), and a solve on a lesser one is
+   solved again from the searched planes (:func:`_face_return`). Where each one-plane
+   solution makes the other plane the arc's higher one, the solution lies on a ridge of f:
+   both planes carry the arc's maximum, h_a = h_b, and the arc's flow is λ N_a + (1 - λ) N_b,
+   0 <= λ <= 1 (Koiter's rule; :func:`_ridge_residual`, one more unknown λ and equation).
 5. Apex (status 2): σ = 0, all of C⁻¹σ_tr plastic, c = c_n exp(P_tr/K), zero tangent
    (as tier 1), when C⁻¹σ_tr dilates at least as much as the flow: tier 1's criterion
    G P_tr + K sin ψ R_tr <= 0 with the isotropic part of ψ(θ) at c_apex (exactly tier 1's at
@@ -41,10 +47,11 @@ order); every returned state lies on its own yield surface, f(σ_{n+1}; q_{n+1},
 **Consistent tangent** ∂σ_{n+1}/∂Δε: with the converged Jacobian J of the residuals r(x; Δε),
 dx/dΔε = J⁻¹ [C; 0] (the only Δε-dependence is σ_tr), fabric coupling included; tested
 against central differences of the whole update (through the fabric's projection when it
-acts; not differentiated: an arc maximum sitting on its arc's end, τ = 0).
+acts, and on a ridge: J of the ridge return there).
 
 **Failures** (status -1): non-finite input, c outside (0, 1), a face solve that does not
-converge outside the apex region, a non-finite result. The point returns its input stress
+converge (or whose ridge return leaves 0 <= λ <= 1, or finds a third plane higher) outside
+the apex region, a non-finite result. The point returns its input stress
 and state and the elastic tangent; nothing non-finite is produced.
 
 **Parameter array** (:meth:`contfab.params.Params.array` (2): the ``[regularization]``,
@@ -68,9 +75,10 @@ from numba import njit, prange
 from contfab.models.cone import (STATUS_APEX, STATUS_ELASTIC, STATUS_FACE, STATUS_FAILED,
                                  _finish, _inputs_finite)
 from contfab.models.fabric_law import N_WORK, fabric_step, rotate_fabric
-from contfab.models.slip_planes import (N_P, N_PL, N_YF, PL_DT, PL_TP, PL_TS, YF_F, YF_FP, YF_FS,
-                                        YF_N, YF_NP, YF_NS, YF_TR, YF_TRP, YF_TRS, fabric_terms,
-                                        fabric_terms_jacobian, yield_and_flow, yield_value)
+from contfab.models.slip_planes import (N_P, N_PL, N_YF, PL_DT, PL_H, PL_HP, PL_HS, PL_TP, PL_TS,
+                                        YF_F, YF_FP, YF_FS, YF_N, YF_NP, YF_NS, YF_TR, YF_TRP,
+                                        YF_TRS, fabric_terms, fabric_terms_jacobian,
+                                        yield_and_flow, yield_value)
 from contfab.tensors import isotropic_stiffness_into, rotate
 
 STATUS_PROJECTED = 3
@@ -80,6 +88,8 @@ STATUS_PROJECTED = 3
 N_PRM = 25
 N_X = 8
 """Unknowns of the local solve: σ (3), Δγ, c, A, Bc, Bs."""
+N_XR = 9
+"""Unknowns of the ridge return: those and λ, the share of the first of the arc's planes."""
 YIELD_TOL = 1e-10
 """Elastic check: f(σ_tr) <= YIELD_TOL · |σ_tr| is elastic."""
 NEWTON_MAXIT = 40
@@ -144,8 +154,10 @@ def _lu_solve(lu, piv, b):
 
 # --------------------------------------------------------------------------- the local solve
 
-Scratch = namedtuple("Scratch", "ttr x theta pl yf res jac piv dx xt x0 dth dpz fq dq ws")
-"""Per-range work arrays of the local solve (allocated once per range, never per point)."""
+Scratch = namedtuple("Scratch", "ttr x theta pl yf res jac piv dx xt x0 dth dpz fq dq ws "
+                                "thb plb yfa yfb xr xrt dxr resr jacr pivr")
+"""Per-range work arrays of the local solve (allocated once per range, never per point);
+``thb`` .. ``pivr``: the ridge return's (:func:`_ridge_residual`)."""
 
 
 @njit(cache=True)
@@ -153,7 +165,10 @@ def _scratch():
     return Scratch(np.empty(3), np.empty(N_X), np.zeros(2), np.empty((2, N_PL)), np.empty(N_YF),
                    np.empty(N_X), np.empty((N_X, N_X)), np.empty(N_X, dtype=np.int64),
                    np.empty(N_X), np.empty(N_X), np.empty(N_X), np.empty(2), np.empty((N_P, 4)),
-                   np.empty(3), np.empty((4, 3)), np.empty(N_WORK))
+                   np.empty(3), np.empty((4, 3)), np.empty(N_WORK),
+                   np.zeros(2), np.empty((2, N_PL)), np.empty(N_YF), np.empty(N_YF),
+                   np.empty(N_XR), np.empty(N_XR), np.empty(N_XR), np.empty(N_XR),
+                   np.empty((N_XR, N_XR)), np.empty(N_XR, dtype=np.int64))
 
 
 @njit(cache=True, error_model="numpy")
@@ -167,15 +182,23 @@ def _residual(x, c_n, qn, prm, search, sc, s_ref):
     ``sc.theta``: the planes; with ``search`` they are first moved to their exact maxima.
     Returns (max |res| (inf outside the domain c > 0), whether Φ had to be projected).
     """
+    if not x[4] > 0.0:
+        return np.inf, False
+    fab = fabric_terms(x[4], x[5], x[6], x[7], prm, sc.dpz)
+    yield_and_flow(x[0], x[1], x[2], fab, prm[16], search, 0, sc.theta, sc.pl, sc.yf)
+    return _assemble(x, c_n, qn, prm, sc, s_ref, sc.res, sc.jac)
+
+
+@njit(cache=True, error_model="numpy")
+def _assemble(x, c_n, qn, prm, sc, s_ref, res, jac):
+    """The step's residuals (:func:`_residual`) at x into ``res[:8]`` and their Jacobian in
+    x[:8] into ``jac[:8, :8]``, from the yield/flow terms in ``sc.yf``; (max |res[:8]|,
+    whether Φ had to be projected)."""
     bulk = prm[0]
     shear = prm[1]
     dgam = x[3]
     c = x[4]
-    if not c > 0.0:
-        return np.inf, False
     yf = sc.yf
-    fab = fabric_terms(c, x[5], x[6], x[7], prm, sc.dpz)
-    yield_and_flow(x[0], x[1], x[2], fab, prm[16], search, 0, sc.theta, sc.pl, yf)
     n0 = yf[YF_N]
     n1 = yf[YF_N + 1]
     n2 = yf[YF_N + 2]
@@ -187,8 +210,6 @@ def _residual(x, c_n, qn, prm, search, sc, s_ref):
     cn2 = shear * n2
     e = c_n * np.exp(-dgam * yf[YF_TR])
     inv = 1.0 / s_ref
-    res = sc.res
-    jac = sc.jac
     dq = sc.dq
     ttr = sc.ttr
     res[0] = (x[0] - ttr[0] + dgam * cn0) * inv
@@ -332,7 +353,193 @@ def _cutting_plane_guess(c_n, qn, fab, prm, sc):
 
 
 @njit(cache=True, error_model="numpy")
+def _plane_step(pl, k, dx, dpz):
+    """The condensed step of plane k with the unknowns' step dx: δθ + θ_σ·dσ + θ_p·(∂p/∂z) dz."""
+    d = pl[k, PL_DT] + pl[k, PL_TS] * dx[0] + pl[k, PL_TS + 1] * dx[1] + pl[k, PL_TS + 2] * dx[2]
+    for j in range(3):
+        for z in range(4):
+            d += pl[k, PL_TP + j] * dpz[j, z] * dx[4 + z]
+    return d
+
+
+@njit(cache=True, error_model="numpy")
+def _ridge_residual(x, k, c_n, qn, prm, sc, s_ref):
+    """Residuals of the ridge return at x = (σ, Δγ, c, A, Bc, Bs, λ) into ``sc.resr`` and
+    their Jacobian into ``sc.jacr``.
+
+    On a ridge of f two planes of arc k, a (``sc.theta[k]``) and b (``sc.thb[k]``), carry
+    its maximum, h_a = h_b, and the arc's flow is their combination λ N_a + (1 - λ) N_b,
+    0 <= λ <= 1 (Koiter's rule). With (·)_a, (·)_b the terms of yield_and_flow with the
+    planes (a, o) and (b, o) (o: the other arc's plane, in both), the residuals are those of
+    :func:`_residual` with f, N, tr N = λ (·)_a + (1 - λ) (·)_b — equal to the ridge's at
+    h_a = h_b, where the softmax weights of both agree — and (h_a - h_b)/|σ_tr|.
+    Returns as :func:`_residual`.
+    """
+    if not x[4] > 0.0:
+        return np.inf, False
+    fab = fabric_terms(x[4], x[5], x[6], x[7], prm, sc.dpz)
+    yfa = sc.yfa
+    yfb = sc.yfb
+    yield_and_flow(x[0], x[1], x[2], fab, prm[16], False, 0, sc.theta, sc.pl, yfa)
+    yield_and_flow(x[0], x[1], x[2], fab, prm[16], False, 0, sc.thb, sc.plb, yfb)
+    lam = x[8]
+    for i in range(N_YF):
+        sc.yf[i] = lam * yfa[i] + (1.0 - lam) * yfb[i]
+    res = sc.resr
+    jac = sc.jacr
+    worst, projected = _assemble(x, c_n, qn, prm, sc, s_ref, res, jac)
+    bulk = prm[0]
+    shear = prm[1]
+    dgam = x[3]
+    inv = 1.0 / s_ref
+    dq = sc.dq
+    # Column λ: the combined terms' ∂/∂λ = (·)_a - (·)_b.
+    d0 = yfa[YF_N] - yfb[YF_N]
+    d1 = yfa[YF_N + 1] - yfb[YF_N + 1]
+    d2 = yfa[YF_N + 2] - yfb[YF_N + 2]
+    jac[0, 8] = dgam * ((bulk + shear) * d0 + (bulk - shear) * d1) * inv
+    jac[1, 8] = dgam * ((bulk - shear) * d0 + (bulk + shear) * d1) * inv
+    jac[2, 8] = dgam * shear * d2 * inv
+    jac[3, 8] = (yfa[YF_F] - yfb[YF_F]) * inv
+    jac[4, 8] = c_n * np.exp(-dgam * sc.yf[YF_TR]) * dgam * (yfa[YF_TR] - yfb[YF_TR])
+    for i in range(3):
+        jac[5 + i, 8] = -dgam * (dq[0, i] * d0 + dq[1, i] * d1 + dq[2, i] * d2)
+    # Row 8: (h_a - h_b)/|σ_tr|, h_k's derivatives in σ and p (slip_planes.plane_terms).
+    pa = sc.pl
+    pb = sc.plb
+    res[8] = (pa[k, PL_H] - pb[k, PL_H]) * inv
+    for j in range(3):
+        jac[8, j] = (pa[k, PL_HS + j] - pb[k, PL_HS + j]) * inv
+    jac[8, 3] = 0.0
+    for z in range(4):
+        d = 0.0
+        for j in range(3):
+            d += (pa[k, PL_HP + j] - pb[k, PL_HP + j]) * sc.dpz[j, z]
+        jac[8, 4 + z] = d * inv
+    jac[8, 8] = 0.0
+    return max(worst, abs(res[8])), projected
+
+
+@njit(cache=True, error_model="numpy")
+def _ridge_newton(k, c_n, qn, prm, sc, s_ref):
+    """Newton on the ridge residuals (:func:`_ridge_residual`) from ``sc.xr``, the planes a,
+    b and o moving with their condensed steps, backtracking on max |residual|: (converged
+    with Δγ >= 0, P > 0 and 0 <= λ <= 1, fabric projected). On success ``sc.jacr`` holds the
+    LU factors of the Jacobian at the solution."""
+    x = sc.xr
+    xt = sc.xrt
+    dx = sc.dxr
+    err, projected = _ridge_residual(x, k, c_n, qn, prm, sc, s_ref)
+    for _ in range(NEWTON_MAXIT):
+        if not np.isfinite(err) or not _lu(sc.jacr, sc.pivr):
+            return False, False
+        if err <= NEWTON_TOL and max(abs(sc.pl[0, PL_DT]), abs(sc.pl[1, PL_DT]),
+                                     abs(sc.plb[k, PL_DT])) <= PLANE_STEP_TOL:
+            return (x[3] >= 0.0 and -0.5 * (x[0] + x[1]) > 0.0 and 0.0 <= x[8] <= 1.0,
+                    projected)
+        for i in range(N_XR):
+            dx[i] = -sc.resr[i]
+        _lu_solve(sc.jacr, sc.pivr, dx)
+        d0 = _plane_step(sc.pl, 0, dx, sc.dpz)
+        d1 = _plane_step(sc.pl, 1, dx, sc.dpz)
+        db = _plane_step(sc.plb, k, dx, sc.dpz)
+        theta0 = sc.theta[0]
+        theta1 = sc.theta[1]
+        theta_b = sc.thb[k]
+        step = 1.0
+        accepted = False
+        for _ in range(30):
+            for i in range(N_XR):
+                xt[i] = x[i] + step * dx[i]
+            sc.theta[0] = theta0 + step * d0
+            sc.theta[1] = theta1 + step * d1
+            sc.thb[k] = theta_b + step * db
+            sc.thb[1 - k] = sc.theta[1 - k]
+            err_t, projected = _ridge_residual(xt, k, c_n, qn, prm, sc, s_ref)
+            if err_t < err or err_t <= NEWTON_TOL:
+                accepted = True
+                break
+            step *= 0.5
+        if not accepted:
+            return False, False
+        for i in range(N_XR):
+            x[i] = xt[i]
+        err = err_t
+    return False, False
+
+
+@njit(cache=True, error_model="numpy")
+def _planes_are_maxima(prm, sc):
+    """Whether the planes of a converged solve carry the arcs' maxima at ``sc.x`` as the
+    elastic check finds them: the plane search (``n_search`` grid points and the ends per
+    arc) gives |f(σ; c, q)| <= YIELD_TOL·|σ| (the solve's own f is 0 to NEWTON_TOL).
+
+    Where φ depends on θ an arc can have several local maxima — its two ends (the principal
+    planes) where the φ-anisotropy outweighs the stress ratio, the clamped plateau's and the
+    free branch's maxima and corners where φ reaches a clamp (slip_planes) — and a solve can
+    converge to any. With φ independent of θ (pc = ps = 0) each arc's h = -g R sin u +
+    tan φ (m + R cos u) is one sinusoid, whose single maximum lies inside the arc: True
+    without a search. ``sc.dth`` ← the searched planes.
+    """
+    x = sc.x
+    fab = fabric_terms(x[4], x[5], x[6], x[7], prm, sc.dpz)
+    if fab[1] == 0.0 and fab[2] == 0.0:
+        return True
+    sc.dth[0] = sc.theta[0]
+    sc.dth[1] = sc.theta[1]
+    f = yield_value(x[0], x[1], x[2], fab, prm[16], int(prm[17]), sc.dth)
+    s = np.hypot(0.5 * (x[0] + x[1]), np.hypot(0.5 * (x[0] - x[1]), x[2]))
+    return abs(f) <= YIELD_TOL * s
+
+
+@njit(cache=True, error_model="numpy")
 def _face_return(c_n, qn, prm, sc, s_ref):
+    """The face solve from ``sc.x`` and ``sc.theta``: (converged to a valid face point whose
+    planes are the arcs' maxima, fabric projected, on a ridge).
+
+    :func:`_newton`; where its planes are a lesser local maximum (:func:`_planes_are_maxima`)
+    it solves again from its solution with the searched planes, and where that fails too —
+    each one-plane solution makes the other plane of the arc the higher: a ridge of f — the
+    ridge return (:func:`_ridge_residual`) between the two. On success ``sc.x`` holds the
+    solution; the LU factors of its Jacobian are in ``sc.jac`` (``sc.jacr`` on a ridge).
+    """
+    face, projected = _newton(c_n, qn, prm, sc, s_ref)
+    if not face:
+        return False, False, False
+    if _planes_are_maxima(prm, sc):
+        return True, projected, False
+    for i in range(N_X):
+        sc.xr[i] = sc.x[i]
+    theta0 = sc.theta[0]
+    theta1 = sc.theta[1]
+    sc.thb[0] = sc.dth[0]
+    sc.thb[1] = sc.dth[1]
+    sc.theta[0] = sc.dth[0]
+    sc.theta[1] = sc.dth[1]
+    face, projected = _newton(c_n, qn, prm, sc, s_ref)
+    if face and _planes_are_maxima(prm, sc):
+        return True, projected, False
+    # The ridge between the first solution's plane and the searched one, on the arc whose
+    # plane moved the most (angles modulo π).
+    moved0 = abs(np.remainder(theta0 - sc.thb[0] + 0.5 * np.pi, np.pi) - 0.5 * np.pi)
+    moved1 = abs(np.remainder(theta1 - sc.thb[1] + 0.5 * np.pi, np.pi) - 0.5 * np.pi)
+    k = 0 if moved0 >= moved1 else 1
+    sc.theta[0] = theta0
+    sc.theta[1] = theta1
+    sc.thb[1 - k] = sc.theta[1 - k]
+    sc.xr[8] = 0.5
+    face, projected = _ridge_newton(k, c_n, qn, prm, sc, s_ref)
+    if not face:
+        return False, False, False
+    for i in range(N_X):
+        sc.x[i] = sc.xr[i]
+    if sc.xr[8] < 0.5:          # the dominant plane warm-starts what follows
+        sc.theta[k] = sc.thb[k]
+    return _planes_are_maxima(prm, sc), projected, True
+
+
+@njit(cache=True, error_model="numpy")
+def _newton(c_n, qn, prm, sc, s_ref):
     """Newton on the step's residuals from ``sc.x``: (converged to a valid face point,
     fabric projected).
 
@@ -374,12 +581,7 @@ def _face_return(c_n, qn, prm, sc, s_ref):
             p = -0.5 * (x[0] + x[1])
             return x[3] >= 0.0 and p > 0.0, projected
         for k in range(2):
-            d = pl[k, PL_DT] + pl[k, PL_TS] * dx[0] + pl[k, PL_TS + 1] * dx[1] \
-                + pl[k, PL_TS + 2] * dx[2]
-            for j in range(3):
-                for z in range(4):
-                    d += pl[k, PL_TP + j] * sc.dpz[j, z] * dx[4 + z]
-            sc.dth[k] = d
+            sc.dth[k] = _plane_step(pl, k, dx, sc.dpz)
         theta0 = sc.theta[0]
         theta1 = sc.theta[1]
         step = 1.0
@@ -427,6 +629,7 @@ def _continuation_return(rotated, c_n, qn, prm, sc):
     full = (ttr[0], ttr[1], ttr[2])
     face = False
     projected = False
+    ridge = False
     for k in range(1, CONTINUATION_STEPS + 1):
         t = k / CONTINUATION_STEPS
         for j in range(3):
@@ -434,12 +637,12 @@ def _continuation_return(rotated, c_n, qn, prm, sc):
         s_ref = np.hypot(0.5 * (ttr[0] + ttr[1]), np.hypot(0.5 * (ttr[0] - ttr[1]), ttr[2]))
         if k == 1:
             _initial_guess(c_n, qn, prm, sc, True)
-        face, projected = _face_return(c_n, qn, prm, sc, s_ref)
+        face, projected, ridge = _face_return(c_n, qn, prm, sc, s_ref)
         if not face:
             break
     for j in range(3):
         ttr[j] = full[j]
-    return face, projected
+    return face, projected, ridge
 
 
 # --------------------------------------------------------------------------- one point
@@ -496,6 +699,7 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
     c_apex = c_n * np.exp(p_tr / bulk)
     face = False
     projected = False
+    ridge = False
     # (and a plastic trial at a stress too small to resolve — |σ_tr| < 1e-200 (K+G), where
     # Newton's arithmetic underflows — is σ = 0 to that accuracy)
     apex = s_ref < 1e-200 * (bulk + shear)
@@ -509,12 +713,12 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
         near = f_tr <= CUTTING_PLANE_RANGE * s_ref
         if not (near and _cutting_plane_guess(c_n, qs, fab, prm, sc)):
             _initial_guess(c_n, qs, prm, sc, False)
-        face, projected = _face_return(c_n, qs, prm, sc, s_ref)
+        face, projected, ridge = _face_return(c_n, qs, prm, sc, s_ref)
         if near and not face:
             _initial_guess(c_n, qs, prm, sc, True)
-            face, projected = _face_return(c_n, qs, prm, sc, s_ref)
+            face, projected, ridge = _face_return(c_n, qs, prm, sc, s_ref)
         if not face:
-            face, projected = _continuation_return((rxx, ryy, rxy), c_n, qs, prm, sc)
+            face, projected, ridge = _continuation_return((rxx, ryy, rxy), c_n, qs, prm, sc)
         # No face point found: the material separates if some plane's flow is less
         # dilatant than C⁻¹σ_tr; otherwise the local solve failed.
         if not face:
@@ -532,17 +736,17 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
         projected = fabric_step(q0, bc, bs, pxx, pyy, pgg, c1, int(prm[18]), prm[19],
                                 prm[20], prm[21], prm[22], prm[23], prm[24], sc.fq, sc.dq,
                                 sc.ws)
-        # Tangent: solve J X = [C/s_ref; 0], column by column.
-        dx = sc.dx
+        # Tangent: solve J X = [C/s_ref; 0], column by column (J of the ridge return there).
+        lu, piv, dx = (sc.jacr, sc.pivr, sc.dxr) if ridge else (sc.jac, sc.piv, sc.dx)
         for j in range(3):
-            for k in range(N_X):
+            for k in range(dx.shape[0]):
                 dx[k] = 0.0
             if j < 2:
                 dx[0] = (bulk + shear if j == 0 else bulk - shear) / s_ref
                 dx[1] = (bulk - shear if j == 0 else bulk + shear) / s_ref
             else:
                 dx[2] = shear / s_ref
-            _lu_solve(sc.jac, sc.piv, dx)
+            _lu_solve(lu, piv, dx)
             for k in range(3):
                 tangent[i, k, j] = dx[k]
         status[i] = STATUS_FACE
