@@ -129,8 +129,6 @@ def test_live_dem_matches_the_stored_dem_curves(live, name):
 
 
 KNOWN_MODEL_FAILURES = {
-    ("biaxial_loose_k1000", 2): "tier 2's local solve fails (status -1) at τ ≈ 0.02 from the "
-                                "live sample's start state (c = 0.772, B = 0.146 at θp = -44°)",
     ("isochoric_shear_dense_k1000", 1): "c drifts 0.835 -> 0.805 at ε_v = 0: c follows the plastic "
                                         "volume change while P grows without bound",
     ("isochoric_shear_dense_k1000", 2): "as tier 1: c drifts at ε_v = 0",
