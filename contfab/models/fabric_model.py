@@ -54,6 +54,15 @@ converge (or whose ridge return leaves 0 <= λ <= 1, or finds a third plane high
 the apex region, a non-finite result. The point returns its input stress
 and state and the elastic tangent; nothing non-finite is produced.
 
+**Compilation.** Every function here except the allocating ones (``_scratch``,
+``_update_range``, ``update_points``), and those of :mod:`contfab.models.slip_planes` and
+:mod:`contfab.models.fabric_law` (but ``drive_fabric``), is compiled with numba's ``_nrt=False``:
+they take arrays and never allocate or return one, so numba's reference counting of each
+array argument at each call — an atomic incref/decref pair, about 5 ns per array per call,
+with tens of calls per point — is dropped (30 % of a tier-2 update, outputs bitwise
+unchanged). An allocation in such a function is a compile error, so the flag cannot hide a
+leak; ``_nrt`` is numba's own (underscored) switch for this.
+
 **Parameter array** (:meth:`contfab.params.Params.array` (2): the ``[regularization]``,
 ``[tier1]`` and ``[tier2]`` parts; angles in radians; 0-7 are tier 1's layout)::
 
@@ -107,7 +116,7 @@ CONTINUATION_STEPS = 4
 
 # --------------------------------------------------------------------------- small linear algebra
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _lu(a, piv):
     """In-place LU with partial pivoting of the square ``a``; False if singular."""
     n = a.shape[0]
@@ -133,7 +142,7 @@ def _lu(a, piv):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _lu_solve(lu, piv, b):
     """Solve in place with the factors of :func:`_lu`."""
     n = lu.shape[0]
@@ -173,7 +182,7 @@ def _scratch():
                    np.empty(N_WORK))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _residual(x, c_n, qn, prm, search, sc, s_ref):
     """Residuals of the backward-Euler step at x = (σxx, σyy, σxy, Δγ, c, A, Bc, Bs) into
     row V_RES of ``sc.v`` and their Jacobian into ``sc.jac`` (planes condensed:
@@ -193,7 +202,7 @@ def _residual(x, c_n, qn, prm, search, sc, s_ref):
     return _assemble(x, c_n, qn, prm, yf, sc, s_ref, sc.v[V_RES], sc.jac)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _assemble(x, c_n, qn, prm, yf, sc, s_ref, res, jac):
     """The step's residuals (:func:`_residual`) at x into ``res[:8]`` and their Jacobian in
     x[:8] into ``jac[:8, :8]``, from the yield/flow terms ``yf``; (max |res[:8]|, whether Φ
@@ -274,7 +283,7 @@ def _assemble(x, c_n, qn, prm, yf, sc, s_ref, res, jac):
     return worst, projected
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _dilatancy_range(c, a, bc, bs, prm, dpz):
     """(sin ψ̄, sin ψ_min) at c: the isotropic part of ψ(θ) and its smallest value over planes."""
     phi0, pc, ps, psi0, qc, qs, _, _, phi_lo, phi_hi = fabric_terms(c, a, bc, bs, prm, dpz)
@@ -283,7 +292,7 @@ def _dilatancy_range(c, a, bc, bs, prm, dpz):
     return np.sin(min(max(psi0, -phi), phi)), np.sin(max(psi0 - amp, -phi_hi))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _initial_guess(c_n, qn, prm, sc, planes):
     """Tier 1's closed-form coaxial return with the isotropic part of φ(θ), ψ(θ) at c_n and
     the fabric at its start value; with ``planes`` also the planes at tier 1's
@@ -324,7 +333,7 @@ def _initial_guess(c_n, qn, prm, sc, planes):
         theta[1] = alpha - 0.25 * np.pi + 0.5 * phi
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _cutting_plane_guess(c_n, qn, fab, prm, sc):
     """One cutting-plane step from σ_tr (planes at their maxima from the elastic check):
     Δγ = f_tr / (∂f/∂σ · C N), σ = σ_tr - Δγ C N, c = c_n exp(-Δγ tr N), fabric at its start
@@ -358,7 +367,7 @@ def _cutting_plane_guess(c_n, qn, fab, prm, sc):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _plane_step(pl, k, dx, dpz):
     """The condensed step of plane k with the unknowns' step dx: δθ + θ_σ·dσ + θ_p·(∂p/∂z) dz."""
     d = pl[k, PL_DT] + pl[k, PL_TS] * dx[0] + pl[k, PL_TS + 1] * dx[1] + pl[k, PL_TS + 2] * dx[2]
@@ -368,7 +377,7 @@ def _plane_step(pl, k, dx, dpz):
     return d
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _ridge_residual(x, k, c_n, qn, prm, sc, s_ref):
     """Residuals of the ridge return at x = (σ, Δγ, c, A, Bc, Bs, λ) into row V_RESR of
     ``sc.v`` and their Jacobian into ``sc.jacr``.
@@ -427,7 +436,7 @@ def _ridge_residual(x, k, c_n, qn, prm, sc, s_ref):
     return max(worst, abs(res[8])), projected
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _ridge_newton(k, c_n, qn, prm, sc, s_ref):
     """Newton on the ridge residuals (:func:`_ridge_residual`) from row V_XR, the planes a,
     b and o moving with their condensed steps, backtracking on max |residual|: (converged
@@ -481,7 +490,7 @@ def _ridge_newton(k, c_n, qn, prm, sc, s_ref):
     return False, False
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _planes_are_maxima(prm, sc):
     """Whether the planes of a converged solve carry the arcs' maxima at its solution as the
     elastic check finds them: the plane search (``n_search`` grid points and the ends per
@@ -506,7 +515,7 @@ def _planes_are_maxima(prm, sc):
     return abs(f) <= YIELD_TOL * s
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _face_return(c_n, qn, prm, sc, s_ref):
     """The face solve from the unknowns and planes in ``sc.v`` (rows V_X, V_THETA): (converged
     to a valid face point whose planes are the arcs' maxima, fabric projected, on a ridge).
@@ -557,7 +566,7 @@ def _face_return(c_n, qn, prm, sc, s_ref):
     return _planes_are_maxima(prm, sc), projected, True
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _newton(c_n, qn, prm, sc, s_ref):
     """Newton on the step's residuals from the unknowns in row V_X: (converged to a valid
     face point, fabric projected).
@@ -642,7 +651,7 @@ def _newton(c_n, qn, prm, sc, s_ref):
     return False, False
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _continuation_return(rotated, c_n, qn, prm, sc):
     """The face solve by continuation in the trial stress, for increments too large for
     Newton from one start: the step's backward-Euler problem with σ_tr(t) = σ_n + t CΔε
@@ -671,7 +680,7 @@ def _continuation_return(rotated, c_n, qn, prm, sc):
 
 # --------------------------------------------------------------------------- one point
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _elastic_strain(sxx, syy, sxy, bulk, shear):
     """C⁻¹σ (Voigt, engineering shear): tr = (σxx+σyy)/(2K), deviator /(2G), γ = σxy/G."""
     vol = 0.25 * (sxx + syy) / bulk
@@ -679,7 +688,7 @@ def _elastic_strain(sxx, syy, sxy, bulk, shear):
     return vol + dev, vol - dev, sxy / shear
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status, sc):
     bulk = prm[0]
     shear = prm[1]

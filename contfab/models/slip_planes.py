@@ -60,6 +60,9 @@ arc maxima obey the envelope theorem, ∂h_k/∂σ = ∂h/∂σ at fixed θ_k, a
 ∂h_k/∂p = ∂h/∂p + h_θ ∂θ_b/∂p; an end plane turns with the principal axis, ∂θ/∂σ = ∂α/∂σ,
 ∂h_k/∂σ = ∂h/∂σ + h_θ ∂α/∂σ, and not with p. The softmax weights are differentiated in
 full.
+
+Every kernel here takes arrays and allocates none: compiled with ``_nrt=False``
+(:mod:`contfab.models.fabric_model`, "Compilation").
 """
 from __future__ import annotations
 
@@ -86,7 +89,7 @@ PLANE_TOL = 1e-13
 """Plane search: a Newton or bisection step below this (radians of u) ends it."""
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _clamped(angle, d1, d2, lo, hi):
     """(angle, d1, d2) with angle clamped to [lo, hi] (derivatives 0 where clamped)."""
     if angle < lo:
@@ -96,7 +99,7 @@ def _clamped(angle, d1, d2, lo, hi):
     return angle, d1, d2, True
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _kink(c2, s2, phi0, pc, ps, phi_lo, phi_hi):
     """The clamp boundary of φ nearest to the plane with (cos 2θ, sin 2θ) = (c2, s2).
 
@@ -129,7 +132,7 @@ def _kink(c2, s2, phi0, pc, ps, phi_lo, phi_hi):
     return best, slope, bound, side
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def has_kinks(phi0, pc, ps, phi_lo, phi_hi):
     """Whether φ_raw(θ) (:func:`_kink`) crosses a clamp bound: only then can an arc maximum
     sit on a corner of h."""
@@ -137,7 +140,7 @@ def has_kinks(phi0, pc, ps, phi_lo, phi_hi):
     return rho > 0.0 and (phi0 - rho < phi_lo or phi0 + rho > phi_hi)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     """h, ∂h/∂u, ∂²h/∂u² at u = 2(θ - α) on the arc of sign g (the plane search)."""
     cu = np.cos(u)
@@ -157,7 +160,7 @@ def _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     return h, hu, huu
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _corner_on_arc(u, g, m, r, ca, sa, slope, bound, side):
     """Whether h has a corner maximum at the clamp boundary u (:func:`_kink`: φ_raw = φ_b
     there, φ_raw_θ = ``slope``, ``side`` toward the free side): the clamped branch
@@ -174,7 +177,7 @@ def _corner_on_arc(u, g, m, r, ca, sa, slope, bound, side):
     return hu_clamped * side > 0.0 and hu_free * side < 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def arc_maximum(g, u0, n_search, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     """u of the maximum of h over the arc of sign g (u in [0, π] for g < 0, [-π, 0] else).
 
@@ -239,14 +242,14 @@ def arc_maximum(g, u0, n_search, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     return u
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _end_value(u, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     """h at an arc's end u = 0 (the plane of σ1 = m + R) or u = ±π (σ2 = m - R), τ = 0."""
     sgn = 1.0 if u == 0.0 else -1.0
     return np.tan(min(max(phi0 + sgn * (pc * ca + ps * sa), phi_lo), phi_hi)) * (m + sgn * r)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _refine_on_arc(g, u, lo, hi, kinks, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     """The maximum of h in [lo, hi] from u: Newton on ∂h/∂u = 0, safeguarded by bisection
     on the sign of ∂h/∂u. Where φ(θ) reaches a clamp (``kinks``), h = |τ| +
@@ -281,7 +284,7 @@ def _refine_on_arc(g, u, lo, hi, kinks, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_
     return u
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _slip_angle(sq, cq, sp, cp, dpsi, dphi):
     """(sin ψ̂, cos ψ̂) and their derivatives along (dψ, dφ) (module doc)."""
     num = sq * cp
@@ -295,7 +298,7 @@ def _slip_angle(sq, cq, sp, cp, dpsi, dphi):
     return sh, ch, (d_num - sh * d_rho) / rho, (d_den - ch * d_rho) / rho
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _branch_slopes(g, sn, m, tau, phi, p_t, p_tt):
     """(tan φ, sec²φ, ∂tan φ/∂θ, h_θ, h_θθ) of h = g τ + tan φ σn on one smooth branch
     φ(θ) with φ_θ = ``p_t``, φ_θθ = ``p_tt`` (σn_θ = 2τ, τ_θ = -2(σn - m))."""
@@ -308,7 +311,7 @@ def _branch_slopes(g, sn, m, tau, phi, p_t, p_tt):
     return t, sec2, t_t, h_t, h_tt
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
     """Every term of the arc-g maximum near u, written to row k of ``pl`` (layout PL_*).
 
@@ -468,7 +471,7 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
         pl[k, PL_SHP + j] = sh_p
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def fabric_terms_jacobian(prm, out):
     """``out`` (6, 4) ← ∂p/∂(c, A, Bc, Bs) of :func:`fabric_terms` (constant: p is affine)."""
     out[:, :] = 0.0
@@ -483,7 +486,7 @@ def fabric_terms_jacobian(prm, out):
         out[row + 1, 3] = amp * np.cos(ang)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def fabric_terms(c, a, bc, bs, prm, dpz):
     """The per-state constants ``fab`` of :func:`plane_terms` (layout of ``prm``: fabric_model).
 
@@ -501,7 +504,7 @@ def fabric_terms(c, a, bc, bs, prm, dpz):
     return phi0, pc, ps, psi0, qc, qs, prm[3], prm[4], prm[6], prm[7]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def stress_frame(sxx, syy, sxy):
     """(m, R, cos 2α, sin 2α): mean stress, deviator radius, major principal direction."""
     m = 0.5 * (sxx + syy)
@@ -512,7 +515,7 @@ def stress_frame(sxx, syy, sxy):
     return m, r, 1.0, 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def arc_u(theta, g, two_alpha):
     """u = 2(θ - α) of plane θ, wrapped to (-π, π] and moved to the nearest end of arc g.
 
@@ -529,7 +532,7 @@ def arc_u(theta, g, two_alpha):
     return u
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def yield_value(sxx, syy, sxy, fab, beta, n_search, theta):
     """f(σ) alone (the elastic check), searching both arcs.
 
@@ -555,7 +558,7 @@ def yield_value(sxx, syy, sxy, fab, beta, n_search, theta):
     return w0 * hk0 + (1.0 - w0) * hk1
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def yield_and_flow(sxx, syy, sxy, fab, beta, search, n_search, theta, pl, yf):
     """f, N, tr N and their σ- and c-derivatives into ``yf`` (layout YF_*; module doc).
 
