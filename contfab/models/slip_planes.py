@@ -187,8 +187,13 @@ def arc_maximum(g, u0, n_search, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     these values are each refined (:func:`_refine_on_arc`, bracketed by their neighbours)
     and the higher result is the maximum — two peaks nearly tied could otherwise be decided
     by the grid's samples, not by their values. Otherwise ``u0`` starts the refinement (a
-    warm start) inside the whole arc.
+    warm start) inside the whole arc. The grid's cos u, sin u follow by rotation through du.
+
+    With φ independent of θ (pc = ps = 0) h = -g R sin u + tan φ (m + R cos u) is one
+    sinusoid: its maximum is u = atan2(-g, tan φ), inside the arc, in closed form.
     """
+    if pc == 0.0 and ps == 0.0:
+        return np.arctan2(-g, np.tan(min(max(phi0, phi_lo), phi_hi)))
     kinks = has_kinks(phi0, pc, ps, phi_lo, phi_hi)
     if g < 0.0:
         lo = 0.0
@@ -209,10 +214,15 @@ def arc_maximum(g, u0, n_search, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     v_prev = -np.inf
     u_cur = lo
     v_cur = _end_value(lo, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)
+    cd = np.cos(du)
+    sd = np.sin(du)
+    cu = np.cos(lo + 0.5 * du)
+    su = np.sin(lo + 0.5 * du)
     for i in range(1, n_search + 3):
         if i <= n_search:
             u_next = lo + (i - 0.5) * du
-            v_next, _, _ = _h_on_arc(u_next, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)
+            v_next = _h_value(cu, su, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)
+            cu, su = cu * cd - su * sd, su * cd + cu * sd
         elif i == n_search + 1:
             u_next = hi
             v_next = _end_value(hi, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)
@@ -240,6 +250,13 @@ def arc_maximum(g, u0, n_search, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
                 > _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)[0]):
             u = ub
     return u
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _h_value(cu, su, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
+    """h at the plane with (cos u, sin u) = (cu, su) on the arc of sign g (no derivatives)."""
+    phi = min(max(phi0 + pc * (ca * cu - sa * su) + ps * (sa * cu + ca * su), phi_lo), phi_hi)
+    return -g * r * su + np.tan(phi) * (m + r * cu)
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
