@@ -1,14 +1,18 @@
 """Tier 2 update: return mapping, apex, tangent, rotation, admissibility, step-size order."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
 from conftest import fabric_terms, model_params, stress_at, update
+from contfab import material_point as mp
 from contfab.models import fabric_model as fm
 from contfab.models import slip_planes as sp
 from contfab.models import fabric_law
 from contfab.models.fabric_law import LAW_BALANCE, rotate_fabric
 from contfab.tensors import rotate
+from contfab.params import load_params
 from dem.conventions import admissibility_margin
 
 ANISO = dict(a1_deg=3.0, a2_deg=12.0, a3_deg=20.0, b0_deg=1.0, b1_deg=2.0, b2_deg=8.0,
@@ -346,3 +350,97 @@ def test_rotating_principal_axes_at_fixed_p_and_r_flow_only_with_fabric():
     s2, q2, st2 = runs[2]
     assert (st2 == fm.STATUS_FACE).sum() > 10 and q2[0] > 1e-4        # tier 2 flows
     assert np.abs(s2 - stress_at(1.0, r, np.pi)).max() > 1e-2         # and leaves the path
+
+
+# --------------------------------------------------------------------------- loose, anisotropic states
+
+CALIBRATED = load_params(Path(__file__).parent / "data" / "dem_reference" / "params.toml")
+"""The calibrated tier-2 parameters of tests/test_material_point_vs_dem.py (relaxation law)."""
+LIVE_LOOSE_START = {"c": 0.771743899069215, "A": 1.0026761414789407, "Bc": 0.005652865875325932,
+                    "Bs": -0.14633724452426797}
+"""The start state of that test's live loose biaxial DEM sample (c = 0.772, B = 0.146 at
+θp = -44°): φ(c) = 3.7° there and the fabric takes the weakest planes below φ_min = 1°."""
+LOOSE_INCREMENTS = {
+    # τ = 0.0199 of the biaxial path from LIVE_LOOSE_START: the loaded arc's maximum sits on
+    # the corner of h where φ(θ) reaches φ_min (status -1 at every step size before corners
+    # were located: the plane's Newton step never vanishes there)
+    "corner": ([-0.9999999999999953, -1.071683950263835, 0.001973437239201],
+               [0.03816813342628275, 0.772739113084251, 0.9502301768691233, -0.19775982451994828,
+                -0.017787789114192598],
+               [0.00018752128252753442, -0.0001999999999999988, 0.0]),
+    # τ = 0.0003: the weak arc's two ends (the principal planes) tie, a ridge of f (a state
+    # 1.6e-3 |σ| inside its own yield surface was returned, status 1, before the ridge return)
+    "ridge": ([-0.9999999999999349, -1.042193642424345, 0.0004835760438205564],
+              [0.0003091911606491924, 0.7717488560480092, 1.0016646358565358, 0.001729731874729321,
+               -0.1438450373523188],
+              [0.00015138329044069487, -0.0002, 0.0]),
+}
+
+
+def _own_yield(params, stress, state):
+    """f(σ; c, q) with the model's own plane search (``n_search``), as its elastic check."""
+    prm = params.array(2)
+    return sp.yield_value(*stress, fabric_terms(prm, *state[1:]), prm[16], int(prm[17]),
+                          np.array([0.3, -0.3]))
+
+
+@pytest.mark.parametrize("case", sorted(LOOSE_INCREMENTS))
+def test_loose_anisotropic_increments_return_onto_their_own_surface(case):
+    stress, state, de = (np.array(v) for v in LOOSE_INCREMENTS[case])
+    s1, q1, t1, status = _update(CALIBRATED, stress, state, de)
+    assert status == fm.STATUS_FACE
+    assert np.isfinite(s1).all() and np.isfinite(q1).all() and np.isfinite(t1).all()
+    assert abs(_own_yield(CALIBRATED, s1, q1)) <= 1e-10 * np.abs(s1).max()
+    assert admissibility_margin(q1[2], np.hypot(q1[3], q1[4])) >= 0.0
+
+    def substeps(n):
+        s, q = stress, state
+        for _ in range(n):
+            s, q, _, st_ = _update(CALIBRATED, s, q, de / n)
+            assert st_ >= 0
+        return s, q
+
+    # Backward Euler is first order: toward 256 steps of the same increment, halving the step
+    # halves the difference (measured 0.50 and 0.56).
+    s_ref, q_ref = substeps(256)
+    s2, q2 = substeps(2)
+    e1, e2 = np.abs(s1 - s_ref).max(), np.abs(s2 - s_ref).max()
+    assert e1 <= 2e-5 and e2 <= 0.65 * e1
+    assert np.abs(q1 - q_ref).max() <= 1e-6
+    # The consistent tangent (the ridge return's own Jacobian on the ridge).
+    h = 1e-7 * np.abs(de).max()
+    fd = np.empty((3, 3))
+    for j in range(3):
+        e = np.zeros(3)
+        e[j] = h
+        fd[:, j] = (_update(CALIBRATED, stress, state, de + e)[0]
+                    - _update(CALIBRATED, stress, state, de - e)[0]) / (2 * h)
+    assert np.abs(t1 - fd).max() <= 1e-5 * np.abs(fd).max()
+
+
+def test_ridge_return_leaves_both_ends_of_the_weak_arc_at_its_maximum():
+    # On the ridge the weak arc's two principal planes carry the same h, tan φ(α) σ1 =
+    # tan φ(α + π/2) σ2 (τ = 0 on both), whatever the step leaves of the rest.
+    stress, state, de = (np.array(v) for v in LOOSE_INCREMENTS["ridge"])
+    s1, q1, _, _ = _update(CALIBRATED, stress, state, de)
+    prm = CALIBRATED.array(2)
+    fab = fabric_terms(prm, *q1[1:])
+    m, r = 0.5 * (s1[0] + s1[1]), np.hypot(0.5 * (s1[0] - s1[1]), s1[2])
+    two_alpha = np.arctan2(s1[2], 0.5 * (s1[0] - s1[1]))
+    ends = []
+    for sign in (1.0, -1.0):
+        phi = fab[0] + sign * (fab[1] * np.cos(two_alpha) + fab[2] * np.sin(two_alpha))
+        ends.append(np.tan(np.clip(phi, prm[6], prm[7])) * (m + sign * r))
+    assert ends[0] == pytest.approx(ends[1], abs=1e-12)
+
+
+def test_biaxial_from_the_live_loose_start_runs_on_its_own_surface():
+    """The live DEM check's tier-2 run (tests/test_material_point_vs_dem.py) without the DEM:
+    the whole biaxial path without a cut, every output row on or inside its own surface."""
+    res = mp.run_path("biaxial", CALIBRATED, 2, state0=LIVE_LOOSE_START)
+    assert res.stats["cuts"] == 0
+    assert res["tau"][-1] == pytest.approx(0.25)
+    for i in range(len(res["tau"])):
+        s = np.array([res["sxx"][i], res["syy"][i], res["sxy"][i]])
+        q = np.array([0.0, res["c"][i], res["A"][i], res["Bc"][i], res["Bs"][i]])
+        assert _own_yield(CALIBRATED, s, q) <= 1e-10 * np.abs(s).max()

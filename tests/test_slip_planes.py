@@ -51,18 +51,33 @@ def test_isotropic_fabric_gives_tier1_cone_and_tier1_dilatancy(tier2_prm, p, rat
 
 
 def _brute_arc_maxima(prm, s, c, a, bc, bs, n=200001):
-    """Max of h = |τ| + tan φ(θ) σn over each sign of τ, by a dense scan (independent code)."""
+    """Max of h = |τ| + tan φ(θ) σn over each sign of τ, by a dense scan of the closed arc
+    refined by golden section between the best point's neighbours (independent code; exact
+    also where the maximum is a corner of the clamp of φ or an arc's end)."""
     m, d, sxy = 0.5 * (s[0] + s[1]), 0.5 * (s[0] - s[1]), s[2]
     alpha = 0.5 * np.arctan2(sxy, d)
     b, theta_p = np.hypot(bc, bs), 0.5 * np.arctan2(bs, bc)
-    out = []
-    for lo in (0.0, -np.pi):                       # u = 2(θ - α): τ < 0 on (0, π), τ > 0 on (-π, 0)
-        theta = alpha + 0.5 * np.linspace(lo, lo + np.pi, n)
+
+    def h(theta):
         sn = m + d * np.cos(2 * theta) + sxy * np.sin(2 * theta)
         tau = -d * np.sin(2 * theta) + sxy * np.cos(2 * theta)
         phi = (prm[8] + prm[3] * (c - C_STAR) + prm[9] * a
                + prm[10] * b * np.cos(2 * (theta - theta_p) + prm[11]))
-        out.append(np.max(np.abs(tau) + np.tan(np.clip(phi, prm[6], prm[7])) * sn))
+        return np.abs(tau) + np.tan(np.clip(phi, prm[6], prm[7])) * sn
+
+    out = []
+    for lo in (0.0, -np.pi):                       # u = 2(θ - α): τ < 0 on (0, π), τ > 0 on (-π, 0)
+        theta = alpha + 0.5 * np.linspace(lo, lo + np.pi, n)
+        values = h(theta)
+        i = int(np.argmax(values))
+        left, right = theta[max(i - 1, 0)], theta[min(i + 1, n - 1)]
+        for _ in range(60):
+            t1, t2 = right - 0.618 * (right - left), left + 0.618 * (right - left)
+            if h(t1) > h(t2):
+                right = t2
+            else:
+                left = t1
+        out.append(max(values[i], h(0.5 * (left + right))))
     return out
 
 
@@ -86,14 +101,94 @@ def test_arc_maxima_are_exact_and_f_is_their_softmax_mean(tier2_prm, ratio, alph
     assert -1e-9 <= gap <= 0.27847 * scale / prm[16] + 1e-9
 
 
+CLAMPED = dict(a0_deg=4.0, a2_deg=15.0, a3_deg=20.0, b0_deg=-2.0, b2_deg=8.0, b3_deg=-30.0)
+"""Plane friction φ(θ) = 4° ± 15° B around c* with φ_min = 2° (CLAMPED_TIER1): φ(θ) reaches
+its clamp on part of the planes, as in a loose state (tests/test_fabric_model.py: the live
+loose biaxial start)."""
+CLAMPED_TIER1 = dict(TIER1, phi_min_deg=2.0)
+
+
+@settings(max_examples=60, deadline=None)
+@given(ratio=st.floats(0.02, 0.3), alpha=st.floats(0.0, np.pi), b=st.floats(0.05, 0.5),
+       theta_p=st.floats(0.0, np.pi), c=st.floats(0.80, 0.82))
+def test_arc_maxima_are_exact_where_phi_reaches_its_clamp(tier2_prm, ratio, alpha, b, theta_p, c):
+    # There h has corners (φ_raw = φ_min) and an arc's maximum can sit on one, or on an arc's
+    # end (τ = 0) where the φ-anisotropy outweighs the stress ratio, and an arc can have two
+    # peaks: the search refines the two best of the grid and the ends (8 points per arc).
+    prm = tier2_prm(tier1=CLAMPED_TIER1, **CLAMPED)
+    fab_args = (0.9, b * np.cos(2 * theta_p), b * np.sin(2 * theta_p))
+    s = stress_at(1.0, ratio, alpha)
+    _, pl = _flow(prm, s, c, *fab_args)
+    brute = _brute_arc_maxima(prm, s, c, *fab_args)
+    assert pl[0, sp.PL_H] == pytest.approx(brute[0], abs=1e-10)
+    assert pl[1, sp.PL_H] == pytest.approx(brute[1], abs=1e-10)
+
+
+def _plane_kinds(s, pl, theta):
+    """'end' (τ = 0), 'corner' (∂θ/∂σ = 0: pinned where φ_raw reaches a clamp) or 'interior'."""
+    kinds = []
+    for k in range(2):
+        tau = -0.5 * (s[0] - s[1]) * np.sin(2 * theta[k]) + s[2] * np.cos(2 * theta[k])
+        if abs(tau) < 1e-12:
+            kinds.append("end")
+        elif not pl[k, sp.PL_TS:sp.PL_TS + 3].any():
+            kinds.append("corner")
+        else:
+            kinds.append("interior")
+    return kinds
+
+
+@pytest.mark.parametrize("kind", ["corner", "end"])
+def test_corner_and_end_maxima_derivatives_match_central_differences(tier2_prm, kind):
+    # No envelope theorem there: a corner plane moves with the fabric,
+    # θ_p = -∂φ_raw/∂p / φ_raw_θ, an end plane with the principal axis, θ_σ = ∂α/∂σ; both
+    # enter ∂f/∂(σ, p) and ∂N/∂(σ, p).
+    # States drawn until four have a plane of this kind (R/P >= 0.02: at R = 0 α is undefined).
+    prm = tier2_prm(tier1=CLAMPED_TIER1, **CLAMPED)
+    dpz = np.empty((sp.N_P, 4))
+    sp.fabric_terms_jacobian(prm, dpz)
+    rng = np.random.default_rng(3)
+    found = 0
+    while found < 4:
+        ratio, alpha, b, theta_p = (rng.uniform(0.02, 0.2), rng.uniform(0, np.pi),
+                                    rng.uniform(0.05, 0.5), rng.uniform(0, np.pi))
+        z0 = np.array([rng.uniform(0.80, 0.82), 0.9, b * np.cos(2 * theta_p),
+                       b * np.sin(2 * theta_p)])
+        s = stress_at(1.0, ratio, alpha)
+        fab = fabric_terms(prm, *z0)
+        pl = np.empty((2, sp.N_PL))
+        yf = np.empty(sp.N_YF)
+        theta = np.array([0.4, -0.4])
+        sp.yield_and_flow(*s, fab, prm[16], True, 8, theta, pl, yf)
+        if kind not in _plane_kinds(s, pl, theta):
+            continue
+        found += 1
+        h = 1e-7
+        for j in range(3):
+            e = np.zeros(3)
+            e[j] = h
+            fd = (_flow(prm, s + e, *z0)[0] - _flow(prm, s - e, *z0)[0]) / (2 * h)
+            assert yf[sp.YF_FS + j] == pytest.approx(fd[sp.YF_F], abs=1e-7)
+            assert yf[sp.YF_NS + j:sp.YF_NS + 9:3] == pytest.approx(fd[sp.YF_N:sp.YF_N + 3],
+                                                                    rel=1e-6, abs=1e-6)
+            assert yf[sp.YF_TRS + j] == pytest.approx(fd[sp.YF_TR], rel=1e-6, abs=1e-6)
+        for z in range(4):
+            e = np.zeros(4)
+            e[z] = h
+            fd = (_flow(prm, s, *(z0 + e))[0] - _flow(prm, s, *(z0 - e))[0]) / (2 * h)
+            assert yf[sp.YF_FP:sp.YF_FP + 3] @ dpz[:3, z] == pytest.approx(fd[sp.YF_F], abs=1e-7)
+            assert yf[sp.YF_NP:sp.YF_NP + 18].reshape(3, 6) @ dpz[:, z] == pytest.approx(
+                fd[sp.YF_N:sp.YF_N + 3], rel=1e-6, abs=1e-6)
+            assert yf[sp.YF_TRP:sp.YF_TRP + 6] @ dpz[:, z] == pytest.approx(fd[sp.YF_TR], abs=1e-6)
+
+
 @settings(max_examples=40, deadline=None)
 @given(ratio=st.floats(0.2, 0.9), alpha=st.floats(0.0, np.pi), b=st.floats(0.0, 0.5),
        theta_p=st.floats(0.0, np.pi), c=st.floats(0.76, 0.86))
 def test_derivatives_match_central_differences(tier2_prm, ratio, alpha, b, theta_p, c):
     # States from inside the cone to beyond it (φ ≈ 25°: R/P = 0.42 at yield), where the
-    # local Newton and the tangent use them. (Far inside the cone with strong anisotropy an
-    # arc maximum can sit on the arc's end, τ = 0, where the envelope theorem does not hold;
-    # such states are elastic.)
+    # local Newton and the tangent use them. (Maxima on an arc's end, τ = 0, or on a corner
+    # of the clamp of φ: test_corner_and_end_maxima_derivatives_match_central_differences.)
     prm = tier2_prm(a1_deg=3.0, a2_deg=12.0, a3_deg=20.0, b0_deg=2.0, b1_deg=2.0, b2_deg=8.0,
                     b3_deg=-30.0)
     fab_args = (0.9, b * np.cos(2 * theta_p), b * np.sin(2 * theta_p))

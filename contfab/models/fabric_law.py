@@ -55,6 +55,9 @@ modes), so the fabric is a *projected* dynamical system: on ∂K the outward par
 rate is removed, discretized (like the stress return) as the closest-point projection
 onto K after the step (:func:`contfab.fabric.project_admissible`, θp kept). Every such
 projection is reported to the caller (status 3 of the tier-2 kernel), never silent.
+
+The kernels but :func:`drive_fabric` allocate no array: compiled with ``_nrt=False``
+(:mod:`contfab.models.fabric_model`, "Compilation").
 """
 from __future__ import annotations
 
@@ -71,7 +74,7 @@ LAW_NAMES = {LAW_BALANCE: "balance", LAW_RELAXATION: "relaxation"}
 SQRT3_4 = np.sqrt(3.0) / 4.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def positive_part_moments(m, r):
     """(I0, I1, I2) with I_k = ∫_{-π}^{π} [m + r cos x]+ cos(kx) dx, r >= 0, in closed form.
 
@@ -83,7 +86,7 @@ def positive_part_moments(m, r):
     return i[0], i[1], i[2]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _moments(m, r):
     """I0, I1, I2 (:func:`positive_part_moments`), I1/r, I2/r and ∂I_k/∂m, ∂I_k/∂r.
 
@@ -114,7 +117,7 @@ def _moments(m, r):
             2.0 * s0, x0 + s0 * c0, s0 + s3 / 3.0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def rotate_fabric(bc, bs, dspin):
     """(Bc, Bs) after a rigid rotation by ``dspin``: θp += dspin, B unchanged.
 
@@ -135,7 +138,7 @@ def rotate_fabric(bc, bs, dspin):
     return 0.0, 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _gram_positive(m, dx, dy, gram, dgram):
     """∫_0^π [d_n]+ w_i w_j dθ, w = (1, cos 2θ, sin 2θ), d_n = m + dx c2 + dy s2, and their
     derivatives in (m, dx, dy).
@@ -187,7 +190,7 @@ MASS = (np.pi, 0.5 * np.pi, 0.5 * np.pi)
 STERIC = (np.pi / 6.0, SQRT3_4, SQRT3_4)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _d_moment(i, j, v):
     """∂/∂(m, dx, dy)_v of ∫_0^π d_n w_i w_j dθ (exact; d_n is linear in (m, dx, dy))."""
     if v == 0:
@@ -200,7 +203,7 @@ def _d_moment(i, j, v):
     return 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def balance_system(a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o, x, y, dxs, dys, gram,
                    dgram):
     """The step's linear system X q_{n+1} = y of law 0 (module doc), rows divided by M, and
@@ -253,7 +256,7 @@ def balance_system(a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o, x, y, dxs,
         dys[3, i] = g_c * qi0 / MASS[i]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _invert3(x, out):
     """out = x⁻¹ for a 3x3 x (cofactors; used where det x >= 1)."""
     out[0, 0] = x[1, 1] * x[2, 2] - x[1, 2] * x[2, 1]
@@ -271,7 +274,7 @@ def _invert3(x, out):
             out[i, j] *= inv_det
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def relaxation_step(a, bc, bs, dexx, deyy, dgxy, a_crit, b_ratio, rate, q, dq):
     """One step of the relaxation law (law 1, module doc): ``q`` (3,) ← the fabric after it,
     ``dq`` (4, 3) ← its derivatives in (Δεxx, Δεyy, Δγxy, c) (zero at Δεp = 0)."""
@@ -304,7 +307,7 @@ def relaxation_step(a, bc, bs, dexx, deyy, dgxy, a_crit, b_ratio, rate, q, dq):
         dq[2, i] = 0.5 * ddy
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def fabric_step(a, bc, bs, dexx, deyy, dgxy, c, law, kappa_a, k_c, k_o, a_crit, b_ratio, rate,
                 q, dq, ws):
     """The fabric after the plastic increment (spin already applied).
@@ -344,7 +347,7 @@ def fabric_step(a, bc, bs, dexx, deyy, dgxy, c, law, kappa_a, k_c, k_o, a_crit, 
     return moved
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _chain_projection(a, bc, bs, q, dq):
     """dq ← (∂ projection / ∂(A, Bc, Bs)) dq for the projection of (a, bc, bs) onto q.
 

@@ -25,7 +25,13 @@ Yield f and flow N: :mod:`contfab.models.slip_planes`; fabric laws:
    (near the surface) or tier 1's closed-form coaxial return; backtracking on max |residual|.
    Where Newton fails from both (increments of hundreds of percent), the same problem is
    reached by continuation in the trial stress (:func:`_continuation_return`).
-   The face solution is accepted when it converged with Δγ >= 0 and P > 0 (status 1).
+   The face solution is accepted when it converged with Δγ >= 0 and P > 0 and its planes
+   are the arcs' maxima (status 1): where φ depends on θ an arc can have several local
+   maxima (its ends, corners of the clamp of φ: slip_planes), and a solve on a lesser one is
+   solved again from the searched planes (:func:`_face_return`). Where each one-plane
+   solution makes the other plane the arc's higher one, the solution lies on a ridge of f:
+   both planes carry the arc's maximum, h_a = h_b, and the arc's flow is λ N_a + (1 - λ) N_b,
+   0 <= λ <= 1 (Koiter's rule; :func:`_ridge_residual`, one more unknown λ and equation).
 5. Apex (status 2): σ = 0, all of C⁻¹σ_tr plastic, c = c_n exp(P_tr/K), zero tangent
    (as tier 1), when C⁻¹σ_tr dilates at least as much as the flow: tier 1's criterion
    G P_tr + K sin ψ R_tr <= 0 with the isotropic part of ψ(θ) at c_apex (exactly tier 1's at
@@ -41,11 +47,21 @@ order); every returned state lies on its own yield surface, f(σ_{n+1}; q_{n+1},
 **Consistent tangent** ∂σ_{n+1}/∂Δε: with the converged Jacobian J of the residuals r(x; Δε),
 dx/dΔε = J⁻¹ [C; 0] (the only Δε-dependence is σ_tr), fabric coupling included; tested
 against central differences of the whole update (through the fabric's projection when it
-acts; not differentiated: an arc maximum sitting on its arc's end, τ = 0).
+acts, and on a ridge: J of the ridge return there).
 
 **Failures** (status -1): non-finite input, c outside (0, 1), a face solve that does not
-converge outside the apex region, a non-finite result. The point returns its input stress
+converge (or whose ridge return leaves 0 <= λ <= 1, or finds a third plane higher) outside
+the apex region, a non-finite result. The point returns its input stress
 and state and the elastic tangent; nothing non-finite is produced.
+
+**Compilation.** Every function here except the allocating ones (``_scratch``,
+``_update_range``, ``update_points``), and those of :mod:`contfab.models.slip_planes` and
+:mod:`contfab.models.fabric_law` (but ``drive_fabric``), is compiled with numba's ``_nrt=False``:
+they take arrays and never allocate or return one, so numba's reference counting of each
+array argument at each call — an atomic incref/decref pair, about 5 ns per array per call,
+with tens of calls per point — is dropped (30 % of a tier-2 update, outputs bitwise
+unchanged). An allocation in such a function is a compile error, so the flag cannot hide a
+leak; ``_nrt`` is numba's own (underscored) switch for this.
 
 **Parameter array** (:meth:`contfab.params.Params.array` (2): the ``[regularization]``,
 ``[tier1]`` and ``[tier2]`` parts; angles in radians; 0-7 are tier 1's layout)::
@@ -68,9 +84,10 @@ from numba import njit, prange
 from contfab.models.cone import (STATUS_APEX, STATUS_ELASTIC, STATUS_FACE, STATUS_FAILED,
                                  _finish, _inputs_finite)
 from contfab.models.fabric_law import N_WORK, fabric_step, rotate_fabric
-from contfab.models.slip_planes import (N_P, N_PL, N_YF, PL_DT, PL_TP, PL_TS, YF_F, YF_FP, YF_FS,
-                                        YF_N, YF_NP, YF_NS, YF_TR, YF_TRP, YF_TRS, fabric_terms,
-                                        fabric_terms_jacobian, yield_and_flow, yield_value)
+from contfab.models.slip_planes import (N_P, N_PL, N_YF, PL_DT, PL_H, PL_HP, PL_HS, PL_TP, PL_TS,
+                                        YF_F, YF_FP, YF_FS, YF_N, YF_NP, YF_NS, YF_TR, YF_TRP,
+                                        YF_TRS, fabric_terms, fabric_terms_jacobian,
+                                        yield_and_flow, yield_value)
 from contfab.tensors import isotropic_stiffness_into, rotate
 
 STATUS_PROJECTED = 3
@@ -80,6 +97,8 @@ STATUS_PROJECTED = 3
 N_PRM = 25
 N_X = 8
 """Unknowns of the local solve: σ (3), Δγ, c, A, Bc, Bs."""
+N_XR = 9
+"""Unknowns of the ridge return: those and λ, the share of the first of the arc's planes."""
 YIELD_TOL = 1e-10
 """Elastic check: f(σ_tr) <= YIELD_TOL · |σ_tr| is elastic."""
 NEWTON_MAXIT = 40
@@ -97,7 +116,7 @@ CONTINUATION_STEPS = 4
 
 # --------------------------------------------------------------------------- small linear algebra
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _lu(a, piv):
     """In-place LU with partial pivoting of the square ``a``; False if singular."""
     n = a.shape[0]
@@ -123,7 +142,7 @@ def _lu(a, piv):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _lu_solve(lu, piv, b):
     """Solve in place with the factors of :func:`_lu`."""
     n = lu.shape[0]
@@ -144,60 +163,75 @@ def _lu_solve(lu, piv, b):
 
 # --------------------------------------------------------------------------- the local solve
 
-Scratch = namedtuple("Scratch", "ttr x theta pl yf res jac piv dx xt x0 dth dpz fq dq ws")
-"""Per-range work arrays of the local solve (allocated once per range, never per point)."""
+Scratch = namedtuple("Scratch", "v planes yfs jac jacr piv dpz dq ws")
+"""Per-range work arrays of the local solve (allocated once per range, never per point), few
+so that passing them costs little: ``v`` the vectors (rows V_*, 9 long), ``planes`` the plane
+terms (rows 0-1: the planes of the solve, 2-3: the ridge return's second configuration),
+``yfs`` the yield/flow terms (rows: the solve's, the ridge's two configurations), ``jac``,
+``jacr`` the Jacobians (8x8, the ridge return's 9x9), ``piv`` their pivots (rows), ``dpz`` ∂p/∂z,
+``dq`` and ``ws`` the fabric law's."""
+V_TTR, V_X, V_THETA, V_RES, V_DX, V_XT, V_X0, V_DTH, V_FQ, V_THB, V_XR, V_XRT, V_DXR, V_RESR = (
+    range(14))
 
 
 @njit(cache=True)
 def _scratch():
-    return Scratch(np.empty(3), np.empty(N_X), np.zeros(2), np.empty((2, N_PL)), np.empty(N_YF),
-                   np.empty(N_X), np.empty((N_X, N_X)), np.empty(N_X, dtype=np.int64),
-                   np.empty(N_X), np.empty(N_X), np.empty(2), np.empty(2), np.empty((N_P, 4)),
-                   np.empty(3), np.empty((4, 3)), np.empty(N_WORK))
+    return Scratch(np.zeros((14, N_XR)), np.empty((4, N_PL)), np.empty((3, N_YF)),
+                   np.empty((N_X, N_X)), np.empty((N_XR, N_XR)),
+                   np.empty((2, N_XR), dtype=np.int64), np.empty((N_P, 4)), np.empty((4, 3)),
+                   np.empty(N_WORK))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _residual(x, c_n, qn, prm, search, sc, s_ref):
     """Residuals of the backward-Euler step at x = (σxx, σyy, σxy, Δγ, c, A, Bc, Bs) into
-    ``sc.res`` and their Jacobian into ``sc.jac`` (planes condensed: slip_planes.plane_terms):
+    row V_RES of ``sc.v`` and their Jacobian into ``sc.jac`` (planes condensed:
+    slip_planes.plane_terms):
 
         (σ - σ_tr + Δγ C N)/|σ_tr|,  f/|σ_tr|,  c - c_n exp(-Δγ tr N),  q - Φ(q_n, Δγ N, c)
 
     with f, N at (σ, c, q) and Φ the fabric law (from the rotated start fabric ``qn``).
-    ``sc.theta``: the planes; with ``search`` they are first moved to their exact maxima.
+    Row V_THETA: the planes; with ``search`` they are first moved to their exact maxima.
     Returns (max |res| (inf outside the domain c > 0), whether Φ had to be projected).
     """
+    if not x[4] > 0.0:
+        return np.inf, False
+    fab = fabric_terms(x[4], x[5], x[6], x[7], prm, sc.dpz)
+    yf = sc.yfs[0]
+    yield_and_flow(x[0], x[1], x[2], fab, prm[16], search, 0, sc.v[V_THETA], sc.planes[0:2], yf)
+    return _assemble(x, c_n, qn, prm, yf, sc, s_ref, sc.v[V_RES], sc.jac)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _assemble(x, c_n, qn, prm, yf, sc, s_ref, res, jac):
+    """The step's residuals (:func:`_residual`) at x into ``res[:8]`` and their Jacobian in
+    x[:8] into ``jac[:8, :8]``, from the yield/flow terms ``yf``; (max |res[:8]|, whether Φ
+    had to be projected)."""
     bulk = prm[0]
     shear = prm[1]
     dgam = x[3]
     c = x[4]
-    if not c > 0.0:
-        return np.inf, False
-    yf = sc.yf
-    fab = fabric_terms(c, x[5], x[6], x[7], prm, sc.dpz)
-    yield_and_flow(x[0], x[1], x[2], fab, prm[16], search, 0, sc.theta, sc.pl, yf)
+    fq = sc.v[V_FQ]
     n0 = yf[YF_N]
     n1 = yf[YF_N + 1]
     n2 = yf[YF_N + 2]
     projected = fabric_step(qn[0], qn[1], qn[2], dgam * n0, dgam * n1, dgam * n2, c,
                             int(prm[18]), prm[19], prm[20], prm[21], prm[22], prm[23], prm[24],
-                            sc.fq, sc.dq, sc.ws)
+                            fq, sc.dq, sc.ws)
     cn0 = (bulk + shear) * n0 + (bulk - shear) * n1
     cn1 = (bulk - shear) * n0 + (bulk + shear) * n1
     cn2 = shear * n2
     e = c_n * np.exp(-dgam * yf[YF_TR])
     inv = 1.0 / s_ref
-    res = sc.res
-    jac = sc.jac
     dq = sc.dq
-    ttr = sc.ttr
+    ttr = sc.v[V_TTR]
     res[0] = (x[0] - ttr[0] + dgam * cn0) * inv
     res[1] = (x[1] - ttr[1] + dgam * cn1) * inv
     res[2] = (x[2] - ttr[2] + dgam * cn2) * inv
     res[3] = yf[YF_F] * inv
     res[4] = c - e
     for i in range(3):
-        res[5 + i] = x[5 + i] - sc.fq[i]
+        res[5 + i] = x[5 + i] - fq[i]
     # Columns σ (0-2): C ∂N/∂σ, ∂f/∂σ, ∂trN/∂σ, and Φ through Δεp = Δγ N.
     for j in range(3):
         ns0 = yf[YF_NS + j]
@@ -249,7 +283,7 @@ def _residual(x, c_n, qn, prm, search, sc, s_ref):
     return worst, projected
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _dilatancy_range(c, a, bc, bs, prm, dpz):
     """(sin ψ̄, sin ψ_min) at c: the isotropic part of ψ(θ) and its smallest value over planes."""
     phi0, pc, ps, psi0, qc, qs, _, _, phi_lo, phi_hi = fabric_terms(c, a, bc, bs, prm, dpz)
@@ -258,15 +292,15 @@ def _dilatancy_range(c, a, bc, bs, prm, dpz):
     return np.sin(min(max(psi0, -phi), phi)), np.sin(max(psi0 - amp, -phi_hi))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _initial_guess(c_n, qn, prm, sc, planes):
     """Tier 1's closed-form coaxial return with the isotropic part of φ(θ), ψ(θ) at c_n and
     the fabric at its start value; with ``planes`` also the planes at tier 1's
     θ = α ± (π/4 - φ/2)."""
     bulk = prm[0]
     shear = prm[1]
-    ttr = sc.ttr
-    x = sc.x
+    ttr = sc.v[V_TTR]
+    x = sc.v[V_X]
     phi0, _, _, psi0, _, _, _, _, phi_lo, phi_hi = fabric_terms(c_n, qn[0], qn[1], qn[2], prm,
                                                                 sc.dpz)
     phi = min(max(phi0, phi_lo), phi_hi)
@@ -294,22 +328,24 @@ def _initial_guess(c_n, qn, prm, sc, planes):
     x[7] = qn[2]
     if planes:
         alpha = 0.5 * np.arctan2(sa, ca)
-        sc.theta[0] = alpha + 0.25 * np.pi - 0.5 * phi
-        sc.theta[1] = alpha - 0.25 * np.pi + 0.5 * phi
+        theta = sc.v[V_THETA]
+        theta[0] = alpha + 0.25 * np.pi - 0.5 * phi
+        theta[1] = alpha - 0.25 * np.pi + 0.5 * phi
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _cutting_plane_guess(c_n, qn, fab, prm, sc):
     """One cutting-plane step from σ_tr (planes at their maxima from the elastic check):
     Δγ = f_tr / (∂f/∂σ · C N), σ = σ_tr - Δγ C N, c = c_n exp(-Δγ tr N), fabric at its start
     value — first order in the step, so small increments start O(Δε²) from the solution.
-    False (``sc.x`` untouched) where the step is undefined (∂f/∂σ · C N <= 0)."""
+    False (the unknowns untouched) where the step is undefined (∂f/∂σ · C N <= 0)."""
     bulk = prm[0]
     shear = prm[1]
-    ttr = sc.ttr
-    x = sc.x
-    yf = sc.yf
-    yield_and_flow(ttr[0], ttr[1], ttr[2], fab, prm[16], False, 0, sc.theta, sc.pl, yf)
+    ttr = sc.v[V_TTR]
+    x = sc.v[V_X]
+    yf = sc.yfs[0]
+    yield_and_flow(ttr[0], ttr[1], ttr[2], fab, prm[16], False, 0, sc.v[V_THETA], sc.planes[0:2],
+                   yf)
     n0 = yf[YF_N]
     n1 = yf[YF_N + 1]
     n2 = yf[YF_N + 2]
@@ -331,39 +367,243 @@ def _cutting_plane_guess(c_n, qn, fab, prm, sc):
     return True
 
 
-@njit(cache=True, error_model="numpy")
-def _face_return(c_n, qn, prm, sc, s_ref):
-    """Newton on the step's residuals from ``sc.x``: (converged to a valid face point,
-    fabric projected).
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _plane_step(pl, k, dx, dpz):
+    """The condensed step of plane k with the unknowns' step dx: δθ + θ_σ·dσ + θ_p·(∂p/∂z) dz."""
+    d = pl[k, PL_DT] + pl[k, PL_TS] * dx[0] + pl[k, PL_TS + 1] * dx[1] + pl[k, PL_TS + 2] * dx[2]
+    for j in range(3):
+        for z in range(4):
+            d += pl[k, PL_TP + j] * dpz[j, z] * dx[4 + z]
+    return d
 
-    The planes move with the condensed step δθ_k + θ_σ·dσ + θ_p·dp; the line search
-    backtracks on max |residual|. If it cannot progress (near the apex the planes are
-    ill-conditioned), the solve restarts from ``sc.x`` with the planes re-searched to their
-    exact maxima at every evaluation. On success ``sc.jac`` holds the LU factors of the Jacobian
-    at the solution, ``sc.yf`` the yield/flow terms and ``sc.fq`` the fabric there.
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _ridge_residual(x, k, c_n, qn, prm, sc, s_ref):
+    """Residuals of the ridge return at x = (σ, Δγ, c, A, Bc, Bs, λ) into row V_RESR of
+    ``sc.v`` and their Jacobian into ``sc.jacr``.
+
+    On a ridge of f two planes of arc k, a (row V_THETA) and b (row V_THB), carry
+    its maximum, h_a = h_b, and the arc's flow is their combination λ N_a + (1 - λ) N_b,
+    0 <= λ <= 1 (Koiter's rule). With (·)_a, (·)_b the terms of yield_and_flow with the
+    planes (a, o) and (b, o) (o: the other arc's plane, in both), the residuals are those of
+    :func:`_residual` with f, N, tr N = λ (·)_a + (1 - λ) (·)_b — equal to the ridge's at
+    h_a = h_b, where the softmax weights of both agree — and (h_a - h_b)/|σ_tr|.
+    Returns as :func:`_residual`.
     """
-    x = sc.x
-    xt = sc.xt
-    dx = sc.dx
-    pl = sc.pl
+    if not x[4] > 0.0:
+        return np.inf, False
+    fab = fabric_terms(x[4], x[5], x[6], x[7], prm, sc.dpz)
+    yf = sc.yfs[0]
+    yfa = sc.yfs[1]
+    yfb = sc.yfs[2]
+    pa = sc.planes[0:2]
+    pb = sc.planes[2:4]
+    yield_and_flow(x[0], x[1], x[2], fab, prm[16], False, 0, sc.v[V_THETA], pa, yfa)
+    yield_and_flow(x[0], x[1], x[2], fab, prm[16], False, 0, sc.v[V_THB], pb, yfb)
+    lam = x[8]
+    for i in range(N_YF):
+        yf[i] = lam * yfa[i] + (1.0 - lam) * yfb[i]
+    res = sc.v[V_RESR]
+    jac = sc.jacr
+    worst, projected = _assemble(x, c_n, qn, prm, yf, sc, s_ref, res, jac)
+    bulk = prm[0]
+    shear = prm[1]
+    dgam = x[3]
+    inv = 1.0 / s_ref
+    dq = sc.dq
+    # Column λ: the combined terms' ∂/∂λ = (·)_a - (·)_b.
+    d0 = yfa[YF_N] - yfb[YF_N]
+    d1 = yfa[YF_N + 1] - yfb[YF_N + 1]
+    d2 = yfa[YF_N + 2] - yfb[YF_N + 2]
+    jac[0, 8] = dgam * ((bulk + shear) * d0 + (bulk - shear) * d1) * inv
+    jac[1, 8] = dgam * ((bulk - shear) * d0 + (bulk + shear) * d1) * inv
+    jac[2, 8] = dgam * shear * d2 * inv
+    jac[3, 8] = (yfa[YF_F] - yfb[YF_F]) * inv
+    jac[4, 8] = c_n * np.exp(-dgam * yf[YF_TR]) * dgam * (yfa[YF_TR] - yfb[YF_TR])
+    for i in range(3):
+        jac[5 + i, 8] = -dgam * (dq[0, i] * d0 + dq[1, i] * d1 + dq[2, i] * d2)
+    # Row 8: (h_a - h_b)/|σ_tr|, h_k's derivatives in σ and p (slip_planes.plane_terms).
+    res[8] = (pa[k, PL_H] - pb[k, PL_H]) * inv
+    for j in range(3):
+        jac[8, j] = (pa[k, PL_HS + j] - pb[k, PL_HS + j]) * inv
+    jac[8, 3] = 0.0
+    for z in range(4):
+        d = 0.0
+        for j in range(3):
+            d += (pa[k, PL_HP + j] - pb[k, PL_HP + j]) * sc.dpz[j, z]
+        jac[8, 4 + z] = d * inv
+    jac[8, 8] = 0.0
+    return max(worst, abs(res[8])), projected
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _ridge_newton(k, c_n, qn, prm, sc, s_ref):
+    """Newton on the ridge residuals (:func:`_ridge_residual`) from row V_XR, the planes a,
+    b and o moving with their condensed steps, backtracking on max |residual|: (converged
+    with Δγ >= 0, P > 0 and 0 <= λ <= 1, fabric projected). On success ``sc.jacr`` holds the
+    LU factors of the Jacobian at the solution."""
+    x = sc.v[V_XR]
+    xt = sc.v[V_XRT]
+    dx = sc.v[V_DXR]
+    res = sc.v[V_RESR]
+    theta = sc.v[V_THETA]
+    thb = sc.v[V_THB]
+    pa = sc.planes[0:2]
+    pb = sc.planes[2:4]
+    piv = sc.piv[1]
+    err, projected = _ridge_residual(x, k, c_n, qn, prm, sc, s_ref)
+    for _ in range(NEWTON_MAXIT):
+        if not np.isfinite(err) or not _lu(sc.jacr, piv):
+            return False, False
+        if err <= NEWTON_TOL and max(abs(pa[0, PL_DT]), abs(pa[1, PL_DT]),
+                                     abs(pb[k, PL_DT])) <= PLANE_STEP_TOL:
+            return (x[3] >= 0.0 and -0.5 * (x[0] + x[1]) > 0.0 and 0.0 <= x[8] <= 1.0,
+                    projected)
+        for i in range(N_XR):
+            dx[i] = -res[i]
+        _lu_solve(sc.jacr, piv, dx)
+        d0 = _plane_step(pa, 0, dx, sc.dpz)
+        d1 = _plane_step(pa, 1, dx, sc.dpz)
+        db = _plane_step(pb, k, dx, sc.dpz)
+        theta0 = theta[0]
+        theta1 = theta[1]
+        theta_b = thb[k]
+        step = 1.0
+        accepted = False
+        for _ in range(30):
+            for i in range(N_XR):
+                xt[i] = x[i] + step * dx[i]
+            theta[0] = theta0 + step * d0
+            theta[1] = theta1 + step * d1
+            thb[k] = theta_b + step * db
+            thb[1 - k] = theta[1 - k]
+            err_t, projected = _ridge_residual(xt, k, c_n, qn, prm, sc, s_ref)
+            if err_t < err or err_t <= NEWTON_TOL:
+                accepted = True
+                break
+            step *= 0.5
+        if not accepted:
+            return False, False
+        for i in range(N_XR):
+            x[i] = xt[i]
+        err = err_t
+    return False, False
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _planes_are_maxima(prm, sc):
+    """Whether the planes of a converged solve carry the arcs' maxima at its solution as the
+    elastic check finds them: the plane search (``n_search`` grid points and the ends per
+    arc) gives |f(σ; c, q)| <= YIELD_TOL·|σ| (the solve's own f is 0 to NEWTON_TOL).
+
+    Where φ depends on θ an arc can have several local maxima — its two ends (the principal
+    planes) where the φ-anisotropy outweighs the stress ratio, the clamped plateau's and the
+    free branch's maxima and corners where φ reaches a clamp (slip_planes) — and a solve can
+    converge to any. With φ independent of θ (pc = ps = 0) each arc's h = -g R sin u +
+    tan φ (m + R cos u) is one sinusoid, whose single maximum lies inside the arc: True
+    without a search. Row V_DTH ← the searched planes.
+    """
+    x = sc.v[V_X]
+    fab = fabric_terms(x[4], x[5], x[6], x[7], prm, sc.dpz)
+    if fab[1] == 0.0 and fab[2] == 0.0:
+        return True
+    searched = sc.v[V_DTH]
+    searched[0] = sc.v[V_THETA][0]
+    searched[1] = sc.v[V_THETA][1]
+    f = yield_value(x[0], x[1], x[2], fab, prm[16], int(prm[17]), searched)
+    s = np.hypot(0.5 * (x[0] + x[1]), np.hypot(0.5 * (x[0] - x[1]), x[2]))
+    return abs(f) <= YIELD_TOL * s
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _face_return(c_n, qn, prm, sc, s_ref):
+    """The face solve from the unknowns and planes in ``sc.v`` (rows V_X, V_THETA): (converged
+    to a valid face point whose planes are the arcs' maxima, fabric projected, on a ridge).
+
+    :func:`_newton`; where its planes are a lesser local maximum (:func:`_planes_are_maxima`)
+    it solves again from its solution with the searched planes, and where that fails too —
+    each one-plane solution makes the other plane of the arc the higher: a ridge of f — the
+    ridge return (:func:`_ridge_residual`) between the two. On success row V_X holds the
+    solution; the LU factors of its Jacobian are in ``sc.jac`` (``sc.jacr`` on a ridge).
+    """
+    face, projected = _newton(c_n, qn, prm, sc, s_ref)
+    if not face:
+        return False, False, False
+    if _planes_are_maxima(prm, sc):
+        return True, projected, False
+    x = sc.v[V_X]
+    xr = sc.v[V_XR]
+    theta = sc.v[V_THETA]
+    thb = sc.v[V_THB]
+    searched = sc.v[V_DTH]
     for i in range(N_X):
-        sc.x0[i] = x[i]
-    start0 = sc.theta[0]
-    start1 = sc.theta[1]
+        xr[i] = x[i]
+    theta0 = theta[0]
+    theta1 = theta[1]
+    thb[0] = searched[0]
+    thb[1] = searched[1]
+    theta[0] = searched[0]
+    theta[1] = searched[1]
+    face, projected = _newton(c_n, qn, prm, sc, s_ref)
+    if face and _planes_are_maxima(prm, sc):
+        return True, projected, False
+    # The ridge between the first solution's plane and the searched one, on the arc whose
+    # plane moved the most (angles modulo π).
+    moved0 = abs(np.remainder(theta0 - thb[0] + 0.5 * np.pi, np.pi) - 0.5 * np.pi)
+    moved1 = abs(np.remainder(theta1 - thb[1] + 0.5 * np.pi, np.pi) - 0.5 * np.pi)
+    k = 0 if moved0 >= moved1 else 1
+    theta[0] = theta0
+    theta[1] = theta1
+    thb[1 - k] = theta[1 - k]
+    xr[8] = 0.5
+    face, projected = _ridge_newton(k, c_n, qn, prm, sc, s_ref)
+    if not face:
+        return False, False, False
+    for i in range(N_X):
+        x[i] = xr[i]
+    if xr[8] < 0.5:          # the dominant plane warm-starts what follows
+        theta[k] = thb[k]
+    return _planes_are_maxima(prm, sc), projected, True
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _newton(c_n, qn, prm, sc, s_ref):
+    """Newton on the step's residuals from the unknowns in row V_X: (converged to a valid
+    face point, fabric projected).
+
+    The planes (row V_THETA) move with the condensed step δθ_k + θ_σ·dσ + θ_p·dp; the line
+    search backtracks on max |residual|. If it cannot progress (near the apex the planes are
+    ill-conditioned), the solve restarts from its start with the planes re-searched to their
+    exact maxima at every evaluation. On success ``sc.jac`` holds the LU factors of the
+    Jacobian at the solution, ``sc.yfs[0]`` the yield/flow terms and row V_FQ the fabric there.
+    """
+    x = sc.v[V_X]
+    xt = sc.v[V_XT]
+    dx = sc.v[V_DX]
+    x0 = sc.v[V_X0]
+    res = sc.v[V_RES]
+    theta = sc.v[V_THETA]
+    dth = sc.v[V_DTH]
+    piv = sc.piv[0]
+    pl = sc.planes[0:2]
+    for i in range(N_X):
+        x0[i] = x[i]
+    start0 = theta[0]
+    start1 = theta[1]
     search = False
     err, projected = _residual(x, c_n, qn, prm, search, sc, s_ref)
     err_prev = np.inf
     for _ in range(NEWTON_MAXIT):
         if not np.isfinite(err):
             return False, False
-        if not _lu(sc.jac, sc.piv):
+        if not _lu(sc.jac, piv):
             return False, False
         if err <= NEWTON_TOL and max(abs(pl[0, PL_DT]), abs(pl[1, PL_DT])) <= PLANE_STEP_TOL:
             p = -0.5 * (x[0] + x[1])
             return x[3] >= 0.0 and p > 0.0, projected
         for i in range(N_X):
-            dx[i] = -sc.res[i]
-        _lu_solve(sc.jac, sc.piv, dx)
+            dx[i] = -res[i]
+        _lu_solve(sc.jac, piv, dx)
         if (err <= NEWTON_TOL_LAST and err <= 1e-2 * err_prev
                 and max(abs(pl[0, PL_DT]), abs(pl[1, PL_DT])) <= 1e-5):
             # Quadratic convergence (the last step cut the residual 100-fold): this step
@@ -374,21 +614,16 @@ def _face_return(c_n, qn, prm, sc, s_ref):
             p = -0.5 * (x[0] + x[1])
             return x[3] >= 0.0 and p > 0.0, projected
         for k in range(2):
-            d = pl[k, PL_DT] + pl[k, PL_TS] * dx[0] + pl[k, PL_TS + 1] * dx[1] \
-                + pl[k, PL_TS + 2] * dx[2]
-            for j in range(3):
-                for z in range(4):
-                    d += pl[k, PL_TP + j] * sc.dpz[j, z] * dx[4 + z]
-            sc.dth[k] = d
-        theta0 = sc.theta[0]
-        theta1 = sc.theta[1]
+            dth[k] = _plane_step(pl, k, dx, sc.dpz)
+        theta0 = theta[0]
+        theta1 = theta[1]
         step = 1.0
         accepted = False
         for _ in range(30):
             for i in range(N_X):
                 xt[i] = x[i] + step * dx[i]
-            sc.theta[0] = theta0 + step * sc.dth[0]
-            sc.theta[1] = theta1 + step * sc.dth[1]
+            theta[0] = theta0 + step * dth[0]
+            theta[1] = theta1 + step * dth[1]
             err_t, projected = _residual(xt, c_n, qn, prm, search, sc, s_ref)
             if err_t < err or err_t <= NEWTON_TOL:
                 accepted = True
@@ -406,9 +641,9 @@ def _face_return(c_n, qn, prm, sc, s_ref):
             # reached can lie in a valley of the residual that exact planes do not leave.
             search = True
             for i in range(N_X):
-                x[i] = sc.x0[i]
-            sc.theta[0] = start0
-            sc.theta[1] = start1
+                x[i] = x0[i]
+            theta[0] = start0
+            theta[1] = start1
             err, projected = _residual(x, c_n, qn, prm, search, sc, s_ref)
             err_prev = np.inf
         else:
@@ -416,17 +651,18 @@ def _face_return(c_n, qn, prm, sc, s_ref):
     return False, False
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _continuation_return(rotated, c_n, qn, prm, sc):
     """The face solve by continuation in the trial stress, for increments too large for
     Newton from one start: the step's backward-Euler problem with σ_tr(t) = σ_n + t CΔε
-    (``rotated`` = σ_n, ``sc.ttr`` = σ_tr(1)) at t = 1/k_max, 2/k_max, .., 1, each solve
+    (``rotated`` = σ_n, row V_TTR = σ_tr(1)) at t = 1/k_max, 2/k_max, .., 1, each solve
     starting from the last. Only the last is the step's own problem; returns as
-    :func:`_face_return`, with ``sc.ttr`` restored."""
-    ttr = sc.ttr
+    :func:`_face_return`, with row V_TTR restored."""
+    ttr = sc.v[V_TTR]
     full = (ttr[0], ttr[1], ttr[2])
     face = False
     projected = False
+    ridge = False
     for k in range(1, CONTINUATION_STEPS + 1):
         t = k / CONTINUATION_STEPS
         for j in range(3):
@@ -434,17 +670,17 @@ def _continuation_return(rotated, c_n, qn, prm, sc):
         s_ref = np.hypot(0.5 * (ttr[0] + ttr[1]), np.hypot(0.5 * (ttr[0] - ttr[1]), ttr[2]))
         if k == 1:
             _initial_guess(c_n, qn, prm, sc, True)
-        face, projected = _face_return(c_n, qn, prm, sc, s_ref)
+        face, projected, ridge = _face_return(c_n, qn, prm, sc, s_ref)
         if not face:
             break
     for j in range(3):
         ttr[j] = full[j]
-    return face, projected
+    return face, projected, ridge
 
 
 # --------------------------------------------------------------------------- one point
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _elastic_strain(sxx, syy, sxy, bulk, shear):
     """C⁻¹σ (Voigt, engineering shear): tr = (σxx+σyy)/(2K), deviator /(2G), γ = σxy/G."""
     vol = 0.25 * (sxx + syy) / bulk
@@ -452,7 +688,7 @@ def _elastic_strain(sxx, syy, sxy, bulk, shear):
     return vol + dev, vol - dev, sxy / shear
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status, sc):
     bulk = prm[0]
     shear = prm[1]
@@ -460,7 +696,7 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
     if not (0.0 < c_n < 1.0):
         status[i] = STATUS_FAILED
         return
-    ttr = sc.ttr
+    ttr = sc.v[V_TTR]
     rxx, ryy, rxy = rotate(stress_n[i, 0], stress_n[i, 1], stress_n[i, 2], dspin[i])
     bc, bs = rotate_fabric(state_n[i, 3], state_n[i, 4], dspin[i])
     q0 = state_n[i, 2]
@@ -474,7 +710,7 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
     if n_search == 0:        # the tier-1 planes are the plane search's warm start
         _initial_guess(c_n, (q0, bc, bs), prm, sc, True)
     fab = fabric_terms(c_n, q0, bc, bs, prm, sc.dpz)
-    f_tr = yield_value(ttr[0], ttr[1], ttr[2], fab, prm[16], n_search, sc.theta)
+    f_tr = yield_value(ttr[0], ttr[1], ttr[2], fab, prm[16], n_search, sc.v[V_THETA])
     state[i, 0] = state_n[i, 0]
     state[i, 1] = c_n
     state[i, 2] = q0
@@ -496,6 +732,7 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
     c_apex = c_n * np.exp(p_tr / bulk)
     face = False
     projected = False
+    ridge = False
     # (and a plastic trial at a stress too small to resolve — |σ_tr| < 1e-200 (K+G), where
     # Newton's arithmetic underflows — is σ = 0 to that accuracy)
     apex = s_ref < 1e-200 * (bulk + shear)
@@ -509,18 +746,18 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
         near = f_tr <= CUTTING_PLANE_RANGE * s_ref
         if not (near and _cutting_plane_guess(c_n, qs, fab, prm, sc)):
             _initial_guess(c_n, qs, prm, sc, False)
-        face, projected = _face_return(c_n, qs, prm, sc, s_ref)
+        face, projected, ridge = _face_return(c_n, qs, prm, sc, s_ref)
         if near and not face:
             _initial_guess(c_n, qs, prm, sc, True)
-            face, projected = _face_return(c_n, qs, prm, sc, s_ref)
+            face, projected, ridge = _face_return(c_n, qs, prm, sc, s_ref)
         if not face:
-            face, projected = _continuation_return((rxx, ryy, rxy), c_n, qs, prm, sc)
+            face, projected, ridge = _continuation_return((rxx, ryy, rxy), c_n, qs, prm, sc)
         # No face point found: the material separates if some plane's flow is less
         # dilatant than C⁻¹σ_tr; otherwise the local solve failed.
         if not face:
             _, spsi_min = _dilatancy_range(c_apex, q0, bc, bs, prm, sc.dpz)
             apex = shear * p_tr + bulk * spsi_min * r_tr <= 0.0
-    x = sc.x
+    x = sc.v[V_X]
     if face:
         for j in range(3):
             stress[i, j] = x[j]
@@ -530,19 +767,20 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
         pxx, pyy, pgg = _elastic_strain(ttr[0] - x[0], ttr[1] - x[1], ttr[2] - x[2], bulk,
                                         shear)
         projected = fabric_step(q0, bc, bs, pxx, pyy, pgg, c1, int(prm[18]), prm[19],
-                                prm[20], prm[21], prm[22], prm[23], prm[24], sc.fq, sc.dq,
+                                prm[20], prm[21], prm[22], prm[23], prm[24], sc.v[V_FQ], sc.dq,
                                 sc.ws)
-        # Tangent: solve J X = [C/s_ref; 0], column by column.
-        dx = sc.dx
+        # Tangent: solve J X = [C/s_ref; 0], column by column (J of the ridge return there).
+        lu, piv, dx = ((sc.jacr, sc.piv[1], sc.v[V_DXR]) if ridge
+                       else (sc.jac, sc.piv[0], sc.v[V_DX]))
         for j in range(3):
-            for k in range(N_X):
+            for k in range(dx.shape[0]):
                 dx[k] = 0.0
             if j < 2:
                 dx[0] = (bulk + shear if j == 0 else bulk - shear) / s_ref
                 dx[1] = (bulk - shear if j == 0 else bulk + shear) / s_ref
             else:
                 dx[2] = shear / s_ref
-            _lu_solve(sc.jac, sc.piv, dx)
+            _lu_solve(lu, piv, dx)
             for k in range(3):
                 tangent[i, k, j] = dx[k]
         status[i] = STATUS_FACE
@@ -552,7 +790,7 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
         pxx, pyy, pgg = _elastic_strain(ttr[0], ttr[1], ttr[2], bulk, shear)
         c1 = c_apex
         projected = fabric_step(q0, bc, bs, pxx, pyy, pgg, c1, int(prm[18]), prm[19], prm[20],
-                                prm[21], prm[22], prm[23], prm[24], sc.fq, sc.dq, sc.ws)
+                                prm[21], prm[22], prm[23], prm[24], sc.v[V_FQ], sc.dq, sc.ws)
         status[i] = STATUS_APEX
     else:
         status[i] = STATUS_FAILED
@@ -560,9 +798,10 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
     state[i, 0] = state_n[i, 0] + np.hypot(pxx - pyy, pgg)
     state[i, 1] = c1
     # Φ's (admissible) output; on the face it equals x[5:8] to the solve's tolerance.
-    state[i, 2] = sc.fq[0]
-    state[i, 3] = sc.fq[1]
-    state[i, 4] = sc.fq[2]
+    fq = sc.v[V_FQ]
+    state[i, 2] = fq[0]
+    state[i, 3] = fq[1]
+    state[i, 4] = fq[2]
     if projected:
         status[i] = STATUS_PROJECTED
 

@@ -17,8 +17,9 @@ a1 = b1 = 0, a0 = φ*, b0 = 0, every plane has tier 1's φ(c), ψ(c).
 
 **Yield.** h(θ) = |τ| + tan φ(θ) σn, f(σ) = max over θ (compression makes σn < 0). The planes
 split into two arcs by the sign of τ (u ∈ (0, π): τ < 0; u ∈ (-π, 0): τ > 0), the two
-conjugate slip families; h is smooth on each. We take the exact maximum h_k of each arc
-(a grid of ``n_search`` points per arc, then safeguarded Newton on ∂h/∂θ = 0) and
+conjugate slip families; h is smooth on each (up to the clamp's corners, below). We take
+the exact maximum h_k of each arc (a grid of ``n_search`` points per arc, then safeguarded
+Newton on ∂h/∂θ = 0) and
 
     f = Σ_k w_k h_k,   w = softmax(β h_k / s),   s = sqrt(m² + R²),
 
@@ -42,9 +43,26 @@ therefore the one that reproduces ψ exactly:
 
     tan ψ̂ = sin ψ cos φ / (1 - sin ψ sin φ)     (ψ̂ = 0 at ψ = 0, ψ̂ = φ at ψ = φ).
 
-**Derivatives** (for the local Newton and the consistent tangent), all analytic: the arc
-maxima obey the envelope theorem, ∂h_k/∂σ = ∂h/∂σ at fixed θ_k, and the planes move with
-∂θ_k/∂σ = -h_θσ / h_θθ; the softmax weights are differentiated in full.
+**Corners and ends.** Where φ_raw(θ) (before the clamp) crosses φ_min or φ_max, h is only
+piecewise smooth: h = |τ| + tan(max(φ_raw, φ_min)) σn is the lesser of its two branches on a
+plane in compression, so its graph has a kink at the boundary φ_raw(θ_b) = φ_min, and an arc
+maximum can sit on that kink (h_θ jumping from + to -) for a whole range of stresses — e.g.
+loose states, where φ(c) is low and the fabric term takes the weakest planes below φ_min.
+Such a corner maximum is located exactly (θ_b in closed form). Where the φ-anisotropy
+outweighs the stress ratio an arc's maximum can also sit on one of its ends, τ = 0 (the
+principal planes θ = α, α + π/2, which the plane search therefore also evaluates). Both
+have their own derivatives below.
+
+**Derivatives** (for the local Newton and the consistent tangent), all analytic: interior
+arc maxima obey the envelope theorem, ∂h_k/∂σ = ∂h/∂σ at fixed θ_k, and the planes move with
+∂θ_k/∂σ = -h_θσ / h_θθ; a corner plane θ_b does not move with σ (∂θ_b/∂σ = 0, ∂h_k/∂σ =
+∂h/∂σ at θ_b) but with the angle coefficients p, ∂θ_b/∂p = -∂φ_raw/∂p / φ_raw_θ, and then
+∂h_k/∂p = ∂h/∂p + h_θ ∂θ_b/∂p; an end plane turns with the principal axis, ∂θ/∂σ = ∂α/∂σ,
+∂h_k/∂σ = ∂h/∂σ + h_θ ∂α/∂σ, and not with p. The softmax weights are differentiated in
+full.
+
+Every kernel here takes arrays and allocates none: compiled with ``_nrt=False``
+(:mod:`contfab.models.fabric_model`, "Compilation").
 """
 from __future__ import annotations
 
@@ -71,7 +89,7 @@ PLANE_TOL = 1e-13
 """Plane search: a Newton or bisection step below this (radians of u) ends it."""
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _clamped(angle, d1, d2, lo, hi):
     """(angle, d1, d2) with angle clamped to [lo, hi] (derivatives 0 where clamped)."""
     if angle < lo:
@@ -81,7 +99,48 @@ def _clamped(angle, d1, d2, lo, hi):
     return angle, d1, d2, True
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _kink(c2, s2, phi0, pc, ps, phi_lo, phi_hi):
+    """The clamp boundary of φ nearest to the plane with (cos 2θ, sin 2θ) = (c2, s2).
+
+    With φ_raw(θ) = φ0 + pc cos 2θ + ps sin 2θ = φ0 + ρ cos(2θ - β) the boundaries are the
+    planes where φ_raw = φ_b, b ∈ {min, max}: 2θ - β = ±arccos((φ_b - φ0)/ρ) (where
+    |φ_b - φ0| < ρ). Returns (d, φ_raw_θ there, φ_b, s): d the change of 2θ to the nearest
+    one (wrapped to (-π, π]; inf if φ_raw reaches neither bound), s = ±1 the direction of
+    θ toward its free side (φ_min < φ_raw < φ_max).
+    """
+    rho = np.hypot(pc, ps)
+    best = np.inf
+    slope = 0.0
+    bound = 0.0
+    side = 0.0
+    if rho == 0.0:
+        return best, slope, bound, side
+    gam = np.arctan2(pc * s2 - ps * c2, pc * c2 + ps * s2)      # 2θ - β
+    for b, upper in ((phi_lo, False), (phi_hi, True)):
+        x = (b - phi0) / rho
+        if abs(x) < 1.0:
+            a = np.arccos(x)
+            for gk in (a, -a):
+                d = gk - gam
+                d -= 2.0 * np.pi * np.floor((d + np.pi) / (2.0 * np.pi))
+                if abs(d) < abs(best):
+                    best = d
+                    slope = -2.0 * rho * np.sin(gk)
+                    bound = b
+                    side = (-1.0 if slope < 0.0 else 1.0) * (-1.0 if upper else 1.0)
+    return best, slope, bound, side
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def has_kinks(phi0, pc, ps, phi_lo, phi_hi):
+    """Whether φ_raw(θ) (:func:`_kink`) crosses a clamp bound: only then can an arc maximum
+    sit on a corner of h."""
+    rho = np.hypot(pc, ps)
+    return rho > 0.0 and (phi0 - rho < phi_lo or phi0 + rho > phi_hi)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     """h, ∂h/∂u, ∂²h/∂u² at u = 2(θ - α) on the arc of sign g (the plane search)."""
     cu = np.cos(u)
@@ -101,32 +160,119 @@ def _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     return h, hu, huu
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _corner_on_arc(u, g, m, r, ca, sa, slope, bound, side):
+    """Whether h has a corner maximum at the clamp boundary u (:func:`_kink`: φ_raw = φ_b
+    there, φ_raw_θ = ``slope``, ``side`` toward the free side): the clamped branch
+    (φ = φ_b) rises toward the free side and the free branch (φ = φ_raw) falls into it,
+
+        ∂h_clamped/∂u · s > 0 > ∂h_free/∂u · s,
+        ∂h_free/∂u = ∂h_clamped/∂u + sec²φ_b φ_raw_u σn.
+    """
+    cu = np.cos(u)
+    su = np.sin(u)
+    t = np.tan(bound)
+    hu_clamped = -g * r * cu - t * r * su
+    hu_free = hu_clamped + (1.0 + t * t) * 0.5 * slope * (m + r * cu)
+    return hu_clamped * side > 0.0 and hu_free * side < 0.0
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
 def arc_maximum(g, u0, n_search, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     """u of the maximum of h over the arc of sign g (u in [0, π] for g < 0, [-π, 0] else).
 
-    With ``n_search`` > 0 the best of that many evenly spaced points starts the Newton
-    iteration and brackets it; otherwise ``u0`` starts it (a warm start) inside the whole
-    arc. Newton on ∂h/∂u = 0 is safeguarded by bisection on the sign of ∂h/∂u.
+    With ``n_search`` > 0: h on that many evenly spaced points and on the arc's two ends
+    (τ = 0, the principal planes: h = tan φ σ1 at u = 0, tan φ σ2 at u = ±π, where a
+    maximum on an end is missed by the grid's midpoints); the two highest local maxima of
+    these values are each refined (:func:`_refine_on_arc`, bracketed by their neighbours)
+    and the higher result is the maximum — two peaks nearly tied could otherwise be decided
+    by the grid's samples, not by their values. Otherwise ``u0`` starts the refinement (a
+    warm start) inside the whole arc. The grid's cos u, sin u follow by rotation through du.
+
+    With φ independent of θ (pc = ps = 0) h = -g R sin u + tan φ (m + R cos u) is one
+    sinusoid: its maximum is u = atan2(-g, tan φ), inside the arc, in closed form.
     """
+    if pc == 0.0 and ps == 0.0:
+        return np.arctan2(-g, np.tan(min(max(phi0, phi_lo), phi_hi)))
+    kinks = has_kinks(phi0, pc, ps, phi_lo, phi_hi)
     if g < 0.0:
         lo = 0.0
         hi = np.pi
     else:
         lo = -np.pi
         hi = 0.0
-    u = min(max(u0, lo), hi)
-    if n_search > 0:
-        du = (hi - lo) / n_search
-        best = -np.inf
-        for j in range(n_search):
-            uj = lo + (j + 0.5) * du
-            h, _, _ = _h_on_arc(uj, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)
-            if h > best:
-                best = h
-                u = uj
-        lo = max(lo, u - du)
-        hi = min(hi, u + du)
+    if n_search == 0:
+        return _refine_on_arc(g, min(max(u0, lo), hi), lo, hi, kinks, m, r, ca, sa, phi0, pc,
+                              ps, phi_lo, phi_hi)
+    du = (hi - lo) / n_search
+    h1 = -np.inf
+    h2 = -np.inf
+    u1 = lo
+    u2 = lo
+    # The values in order along the arc (end lo, the grid, end hi); v_cur is a local maximum
+    # when neither neighbour is higher.
+    v_prev = -np.inf
+    u_cur = lo
+    v_cur = _end_value(lo, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)
+    cd = np.cos(du)
+    sd = np.sin(du)
+    cu = np.cos(lo + 0.5 * du)
+    su = np.sin(lo + 0.5 * du)
+    for i in range(1, n_search + 3):
+        if i <= n_search:
+            u_next = lo + (i - 0.5) * du
+            v_next = _h_value(cu, su, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)
+            cu, su = cu * cd - su * sd, su * cd + cu * sd
+        elif i == n_search + 1:
+            u_next = hi
+            v_next = _end_value(hi, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)
+        else:
+            u_next = hi
+            v_next = -np.inf
+        if v_cur >= v_prev and v_cur >= v_next:
+            if v_cur > h1:
+                h2 = h1
+                u2 = u1
+                h1 = v_cur
+                u1 = u_cur
+            elif v_cur > h2:
+                h2 = v_cur
+                u2 = u_cur
+        v_prev = v_cur
+        v_cur = v_next
+        u_cur = u_next
+    u = _refine_on_arc(g, u1, max(lo, u1 - du), min(hi, u1 + du), kinks, m, r, ca, sa, phi0,
+                       pc, ps, phi_lo, phi_hi)
+    if h2 > -np.inf:
+        ub = _refine_on_arc(g, u2, max(lo, u2 - du), min(hi, u2 + du), kinks, m, r, ca, sa,
+                            phi0, pc, ps, phi_lo, phi_hi)
+        if (_h_on_arc(ub, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)[0]
+                > _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)[0]):
+            u = ub
+    return u
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _h_value(cu, su, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
+    """h at the plane with (cos u, sin u) = (cu, su) on the arc of sign g (no derivatives)."""
+    phi = min(max(phi0 + pc * (ca * cu - sa * su) + ps * (sa * cu + ca * su), phi_lo), phi_hi)
+    return -g * r * su + np.tan(phi) * (m + r * cu)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _end_value(u, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
+    """h at an arc's end u = 0 (the plane of σ1 = m + R) or u = ±π (σ2 = m - R), τ = 0."""
+    sgn = 1.0 if u == 0.0 else -1.0
+    return np.tan(min(max(phi0 + sgn * (pc * ca + ps * sa), phi_lo), phi_hi)) * (m + sgn * r)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _refine_on_arc(g, u, lo, hi, kinks, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
+    """The maximum of h in [lo, hi] from u: Newton on ∂h/∂u = 0, safeguarded by bisection
+    on the sign of ∂h/∂u. Where φ(θ) reaches a clamp (``kinks``), h = |τ| +
+    tan(clamp(φ_raw)) σn has a kink at the boundary and the maximum can sit on it (a corner,
+    ∂h/∂u jumping from + to -): a step that crosses a boundary stops there if it is a corner
+    maximum (:func:`_corner_on_arc`)."""
     for _ in range(NEWTON_MAXIT_PLANE):
         _, hu, huu = _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)
         if huu < 0.0 and abs(hu) < PLANE_TOL * -huu:   # the Newton step is below tolerance
@@ -140,6 +286,14 @@ def arc_maximum(g, u0, n_search, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
         un = u - hu / huu if huu < 0.0 else 0.5 * (lo + hi)
         if not (lo < un < hi):
             un = 0.5 * (lo + hi)
+        if kinks:
+            cu = np.cos(u)
+            su = np.sin(u)
+            d, slope, bound, side = _kink(ca * cu - sa * su, sa * cu + ca * su, phi0, pc, ps,
+                                          phi_lo, phi_hi)
+            if d * (un - u) > 0.0 and abs(d) < abs(un - u) \
+                    and _corner_on_arc(u + d, g, m, r, ca, sa, slope, bound, side):
+                return u + d
         step = abs(un - u)
         u = un
         if step < PLANE_TOL:
@@ -147,7 +301,7 @@ def arc_maximum(g, u0, n_search, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     return u
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _slip_angle(sq, cq, sp, cp, dpsi, dphi):
     """(sin ψ̂, cos ψ̂) and their derivatives along (dψ, dφ) (module doc)."""
     num = sq * cp
@@ -161,7 +315,20 @@ def _slip_angle(sq, cq, sp, cp, dpsi, dphi):
     return sh, ch, (d_num - sh * d_rho) / rho, (d_den - ch * d_rho) / rho
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _branch_slopes(g, sn, m, tau, phi, p_t, p_tt):
+    """(tan φ, sec²φ, ∂tan φ/∂θ, h_θ, h_θθ) of h = g τ + tan φ σn on one smooth branch
+    φ(θ) with φ_θ = ``p_t``, φ_θθ = ``p_tt`` (σn_θ = 2τ, τ_θ = -2(σn - m))."""
+    t = np.tan(phi)
+    sec2 = 1.0 + t * t
+    t_t = sec2 * p_t
+    t_tt = 2.0 * t * sec2 * p_t * p_t + sec2 * p_tt
+    h_t = -2.0 * g * (sn - m) + t_t * sn + 2.0 * t * tau
+    h_tt = -4.0 * g * tau + t_tt * sn + 4.0 * t_t * tau - 4.0 * t * (sn - m)
+    return t, sec2, t_t, h_t, h_tt
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
 def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
     """Every term of the arc-g maximum near u, written to row k of ``pl`` (layout PL_*).
 
@@ -171,6 +338,14 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
     order — h + ½ h_θ δθ, N + N_θ δθ, ∂h/∂σ + h_θσ δθ — so an outer Newton iteration that
     also moves the plane by δθ + θ_σ dσ + θ_p dp solves the plane's optimality jointly
     (static condensation). At the exact maximizer δθ = 0 and every term is exact.
+
+    Where φ(θ) reaches a clamp the maximum can be a corner of h at the boundary φ_raw = φ_b
+    (:func:`_corner_on_arc`); there δθ is the step to the boundary, θ_σ = 0,
+    θ_p = -∂φ_raw/∂p / φ_raw_θ, the values are h + h_θ δθ, N + N_θ δθ, ∂h/∂σ + h_θσ δθ and
+    ∂h/∂p includes h_θ θ_p (no envelope theorem at a corner). Where the step leaves the arc
+    (or h is not concave at u and rises toward an end) the plane goes to that end and turns
+    with the principal axis there (θ_σ = ∂α/∂σ, θ_p = 0, values to first order, ∂h/∂σ
+    including h_θ θ_σ).
     """
     phi0, pc, ps, psi0, qc, qs = fab[0], fab[1], fab[2], fab[3], fab[4], fab[5]
     cu = np.cos(u)
@@ -187,36 +362,76 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
     ta_s1 = 0.5 * s2
     ta_s2 = c2
     # Friction: φ_θ = 2 φ_u, φ_θθ = 4 φ_uu; basis of its coefficients (1, c2, s2).
-    phi, p_t, p_tt, phi_free = _clamped(phi0 + pc * c2 + ps * s2, 2.0 * (-pc * s2 + ps * c2),
-                                        -4.0 * (pc * c2 + ps * s2), fab[8], fab[9])
-    t = np.tan(phi)
-    sec2 = 1.0 + t * t
-    t_t = sec2 * p_t
-    t_tt = 2.0 * t * sec2 * p_t * p_t + sec2 * p_tt
+    phr = phi0 + pc * c2 + ps * s2
+    phr_t = 2.0 * (-pc * s2 + ps * c2)
+    phr_tt = -4.0 * (pc * c2 + ps * s2)
+    phi, p_t, p_tt, phi_free = _clamped(phr, phr_t, phr_tt, fab[8], fab[9])
+    t, sec2, t_t, h_t, h_tt = _branch_slopes(g, sn, m, tau, phi, p_t, p_tt)
     h = g * tau + t * sn
-    h_t = -2.0 * g * (sn - m) + t_t * sn + 2.0 * t * tau
-    h_tt = -4.0 * g * tau + t_tt * sn + 4.0 * t_t * tau - 4.0 * t * (sn - m)
     # h_θσ = -2g(∂σn/∂σ - e) + T_θ ∂σn/∂σ + 2T ∂τ/∂σ
     hts0 = -2.0 * g * (sn_s0 - 0.5) + t_t * sn_s0 + 2.0 * t * ta_s0
     hts1 = -2.0 * g * (sn_s1 - 0.5) + t_t * sn_s1 + 2.0 * t * ta_s1
     hts2 = -2.0 * g * sn_s2 + t_t * sn_s2 + 2.0 * t * ta_s2
-    if h_tt < -1e-12 * (abs(m) + r):     # an interior maximum, resolvable against |σ|
-        inv = -1.0 / h_tt
-        # The plane's Newton step, kept inside the arc (u + 2δθ in [0, π] or [-π, 0]).
-        lo = 0.0 if g < 0.0 else -np.pi
-        dt = min(max(inv * h_t, 0.5 * (lo - u)), 0.5 * (lo + np.pi - u))
-    else:
+    lo = 0.0 if g < 0.0 else -np.pi
+    corner = False
+    kink_t = 0.0
+    dk = 0.0
+    if has_kinks(phi0, pc, ps, fab[8], fab[9]):
+        # Local model: the two smooth branches of h (φ clamped, φ free) as quadratics at θ,
+        # meeting at the nearest clamp boundary θ + δk. Its maximum is that corner when the
+        # clamped branch still rises toward the free side there and the free one falls.
+        d, kink_t, bound, side = _kink(c2, s2, phi0, pc, ps, fab[8], fab[9])
+        dk = 0.5 * d
+        if lo <= u + d <= lo + np.pi:
+            if phi_free:
+                _, _, _, o_t, o_tt = _branch_slopes(g, sn, m, tau, bound, 0.0, 0.0)
+                free_t = h_t + h_tt * dk
+                clamped_t = o_t + o_tt * dk
+            else:
+                _, _, _, o_t, o_tt = _branch_slopes(g, sn, m, tau, phr, phr_t, phr_tt)
+                free_t = o_t + o_tt * dk
+                clamped_t = h_t + h_tt * dk
+            corner = clamped_t * side > 0.0 and free_t * side < 0.0
+    # What the plane's step leads to: an interior maximum (θ_σ = -h_θσ/h_θθ, the envelope
+    # theorem), a corner (above), or the arc's end, where the step leaves the arc (a
+    # non-concave point ascends to it): there τ = 0, the plane is the principal plane
+    # θ = α or α + π/2 and turns with it, θ_σ = ∂α/∂σ = (-sin 2α, sin 2α, 2 cos 2α)/(4R),
+    # θ_p = 0, and ∂h/∂σ includes h_θ θ_σ.
+    end = False
+    if corner:
+        # A corner maximum: the plane is pinned to the boundary φ_raw(θ) = φ_b, which moves
+        # with p alone (θ_p = -∂φ_raw/∂p / φ_raw_θ, θ_σ = 0); its value follows h to first
+        # order, h + h_θ δk, and its p-derivative includes the motion, ∂h/∂p + h_θ θ_p.
         inv = 0.0
-        dt = 0.0
+        dt = dk
+    else:
+        if h_tt < -1e-12 * (abs(m) + r):     # an interior maximum, resolvable against |σ|
+            inv = -1.0 / h_tt
+            step = inv * h_t
+        else:
+            inv = 0.0
+            step = np.pi if h_t > 0.0 else (-np.pi if h_t < 0.0 else 0.0)
+        # The plane's step, kept inside the arc (u + 2δθ in [0, π] or [-π, 0]).
+        dt = min(max(step, 0.5 * (lo - u)), 0.5 * (lo + np.pi - u))
+        end = dt != step and r > 0.0
+    if end:
+        inv = 0.0
+        ts0 = -0.25 * sa / r
+        ts1 = 0.25 * sa / r
+        ts2 = 0.5 * ca / r
+    else:
+        ts0 = inv * hts0
+        ts1 = inv * hts1
+        ts2 = inv * hts2
+    pl[k, PL_H] = h + (h_t if corner or end else 0.5 * h_t) * dt
     pl[k, PL_DT] = dt
-    pl[k, PL_H] = h + 0.5 * h_t * dt
-    pl[k, PL_HS] = g * ta_s0 + t * sn_s0 + hts0 * dt
-    pl[k, PL_HS + 1] = g * ta_s1 + t * sn_s1 + hts1 * dt
-    pl[k, PL_HS + 2] = g * ta_s2 + t * sn_s2 + hts2 * dt
-    # ∂θ/∂σ = -h_θσ / h_θθ (0 where the maximum is not interior, or R ~ 1e-12 |σ|).
-    pl[k, PL_TS] = inv * hts0
-    pl[k, PL_TS + 1] = inv * hts1
-    pl[k, PL_TS + 2] = inv * hts2
+    pl[k, PL_HS] = g * ta_s0 + t * sn_s0 + hts0 * dt + (h_t * ts0 if end else 0.0)
+    pl[k, PL_HS + 1] = g * ta_s1 + t * sn_s1 + hts1 * dt + (h_t * ts1 if end else 0.0)
+    pl[k, PL_HS + 2] = g * ta_s2 + t * sn_s2 + hts2 * dt + (h_t * ts2 if end else 0.0)
+    # ∂θ/∂σ (0 at a corner, or where R ~ 1e-12 |σ| leaves the plane undetermined).
+    pl[k, PL_TS] = ts0
+    pl[k, PL_TS + 1] = ts1
+    pl[k, PL_TS + 2] = ts2
     # Dilatancy, clamped to [-φ, φ] (then it follows φ).
     psi = psi0 + qc * c2 + qs * s2
     q_t = 2.0 * (-qc * s2 + qs * c2)
@@ -256,8 +471,13 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
             dpsi = clamp * dphi
             t_p = sec2 * dphi
             ht_p = (2.0 * t * sec2 * dphi * p_t + sec2 * dphi_t) * sn + 2.0 * t_p * tau
-            pl[k, PL_HP + j] = t_p * sn + ht_p * dt
-            pl[k, PL_TP + j] = inv * ht_p
+            if corner:
+                tp = -b / kink_t
+                pl[k, PL_HP + j] = t_p * sn + ht_p * dt + h_t * tp
+                pl[k, PL_TP + j] = tp
+            else:
+                pl[k, PL_HP + j] = t_p * sn + ht_p * dt
+                pl[k, PL_TP + j] = inv * ht_p
         else:
             dphi = 0.0
             dpsi = b if clamp == 0.0 else 0.0
@@ -268,7 +488,7 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
         pl[k, PL_SHP + j] = sh_p
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def fabric_terms_jacobian(prm, out):
     """``out`` (6, 4) ← ∂p/∂(c, A, Bc, Bs) of :func:`fabric_terms` (constant: p is affine)."""
     out[:, :] = 0.0
@@ -283,7 +503,7 @@ def fabric_terms_jacobian(prm, out):
         out[row + 1, 3] = amp * np.cos(ang)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def fabric_terms(c, a, bc, bs, prm, dpz):
     """The per-state constants ``fab`` of :func:`plane_terms` (layout of ``prm``: fabric_model).
 
@@ -301,7 +521,7 @@ def fabric_terms(c, a, bc, bs, prm, dpz):
     return phi0, pc, ps, psi0, qc, qs, prm[3], prm[4], prm[6], prm[7]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def stress_frame(sxx, syy, sxy):
     """(m, R, cos 2α, sin 2α): mean stress, deviator radius, major principal direction."""
     m = 0.5 * (sxx + syy)
@@ -312,7 +532,7 @@ def stress_frame(sxx, syy, sxy):
     return m, r, 1.0, 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def arc_u(theta, g, two_alpha):
     """u = 2(θ - α) of plane θ, wrapped to (-π, π] and moved to the nearest end of arc g.
 
@@ -329,7 +549,7 @@ def arc_u(theta, g, two_alpha):
     return u
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def yield_value(sxx, syy, sxy, fab, beta, n_search, theta):
     """f(σ) alone (the elastic check), searching both arcs.
 
@@ -355,7 +575,7 @@ def yield_value(sxx, syy, sxy, fab, beta, n_search, theta):
     return w0 * hk0 + (1.0 - w0) * hk1
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def yield_and_flow(sxx, syy, sxy, fab, beta, search, n_search, theta, pl, yf):
     """f, N, tr N and their σ- and c-derivatives into ``yf`` (layout YF_*; module doc).
 
