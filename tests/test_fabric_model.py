@@ -354,8 +354,10 @@ def test_rotating_principal_axes_at_fixed_p_and_r_flow_only_with_fabric():
 
 # --------------------------------------------------------------------------- loose, anisotropic states
 
-CALIBRATED = load_params(Path(__file__).parent / "data" / "dem_reference" / "params.toml")
-"""The calibrated tier-2 parameters of tests/test_material_point_vs_dem.py (relaxation law)."""
+CALIBRATED = load_params(Path(__file__).parent / "data" / "params_n40_calibration.toml")
+"""The tier-2 parameters (relaxation law) of the N = 40 calibration that
+tests/test_material_point_vs_dem.py used when its live check found these failures (kept
+here: the test data now hold the default-settings calibration)."""
 LIVE_LOOSE_START = {"c": 0.771743899069215, "A": 1.0026761414789407, "Bc": 0.005652865875325932,
                     "Bs": -0.14633724452426797}
 """The start state of that test's live loose biaxial DEM sample (c = 0.772, B = 0.146 at
@@ -442,5 +444,5 @@ def test_biaxial_from_the_live_loose_start_runs_on_its_own_surface():
     assert res["tau"][-1] == pytest.approx(0.25)
     for i in range(len(res["tau"])):
         s = np.array([res["sxx"][i], res["syy"][i], res["sxy"][i]])
-        q = np.array([0.0, res["c"][i], res["A"][i], res["Bc"][i], res["Bs"][i]])
+        q = np.array([0.0, res["c_p"][i], res["A"][i], res["Bc"][i], res["Bs"][i]])
         assert _own_yield(CALIBRATED, s, q) <= 1e-10 * np.abs(s).max()
