@@ -92,8 +92,10 @@ def test_dem_stiffness_fast_error_falls_with_cost_toward_the_rigid_limit(dem_fas
     t = _table(dem_fast, "dem_stiffness")
     order = np.argsort(t["kappa"])[::-1]       # stiffest (most costly) first
     # soft contacts overlap: c is ~4 % too high at κ = 100, below 0.5 % at κ >= 1e3;
-    # the time step ∝ κ^-1/2 makes the stiff runs the costly ones
-    assert np.all(np.diff(t["error_c"][order]) > 0) and np.all(np.diff(t["cost"][order]) < 0)
+    # the time step ∝ κ^-1/2 makes the stiff runs the costly ones (10x in steps from 1e2 to
+    # 1e4; neighbours only 3.2x, which CPU time on a loaded machine once inverted: 5.8 s at
+    # 1e3 against 4.8 s at 1e4, so the cost is checked end to end)
+    assert np.all(np.diff(t["error_c"][order]) > 0) and t["cost"][order][0] > 2 * t["cost"][order][-1]
     assert t["error_c"][order][-1] > 0.02 and t["error_c"][order][0] < 0.005
 
 
