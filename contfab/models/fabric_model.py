@@ -83,7 +83,7 @@ from numba import njit, prange
 
 from contfab.models.cone import (STATUS_APEX, STATUS_ELASTIC, STATUS_FACE, STATUS_FAILED,
                                  _finish, _inputs_finite)
-from contfab.models.fabric_law import N_WORK, fabric_step, rotate_fabric
+from contfab.models.fabric_law import balance_work, fabric_step, rotate_fabric
 from contfab.models.slip_planes import (N_P, N_PL, N_YF, PL_DT, PL_H, PL_HP, PL_HS, PL_TP, PL_TS,
                                         YF_F, YF_FP, YF_FS, YF_N, YF_NP, YF_NS, YF_TR, YF_TRP,
                                         YF_TRS, fabric_terms, fabric_terms_jacobian,
@@ -179,7 +179,7 @@ def _scratch():
     return Scratch(np.zeros((14, N_XR)), np.empty((4, N_PL)), np.empty((3, N_YF)),
                    np.empty((N_X, N_X)), np.empty((N_XR, N_XR)),
                    np.empty((2, N_XR), dtype=np.int64), np.empty((N_P, 4)), np.empty((4, 3)),
-                   np.empty(N_WORK))
+                   balance_work())
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
