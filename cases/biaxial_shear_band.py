@@ -20,7 +20,9 @@ Roscoe–Coulomb range (reference = the angle itself inside the range).
 Softening without an internal length makes the post-peak branch mesh dependent (the
 band is as thin as the elements allow): ``--study`` runs mesh levels 1..3 and λ, 10λ,
 and reports the post-peak stress ratio at the end of the push per mesh, and the peak
-change with λ (the rigid-plastic limit).
+change with λ (the rigid-plastic limit). A study run whose Newton fails is recorded in
+the notes (message, last converged strain and stress ratio, the peak so far) and the
+others still run; a failure of the main run is an error.
 """
 from __future__ import annotations
 
@@ -33,13 +35,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # this checkout
 
 import numpy as np  # noqa: E402
 
-from contfab.cases import CaseResult, Figure, main  # noqa: E402
+from contfab.cases import CaseResult, Figure, failure_note, main  # noqa: E402
 from contfab.fem import analysis, loads  # noqa: E402
 from contfab.fem import mesh as meshes  # noqa: E402
 from contfab.fem.assembly import Discretization  # noqa: E402
 from contfab.fem.elements import ELEMENTS  # noqa: E402
 from contfab.fem.material import TierMaterial  # noqa: E402
-from contfab.fem.solver import NewtonOptions, Solver, Stage  # noqa: E402
+from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver, Stage  # noqa: E402
 from contfab.models.cone import friction_angles  # noqa: E402
 from contfab.params import ParamError, default_params, load_params  # noqa: E402
 
@@ -155,6 +157,10 @@ def add_arguments(p) -> None:
                    help="also mesh levels 1..3 (post-peak mesh dependence) and 10 lambda")
 
 
+STUDY_KEYS = ("dofs", "peak", "peak_strain", "end", "angle", "steps", "median_newton", "wall_s")
+"""What ``--study`` records of each of its runs."""
+
+
 def run(args) -> CaseResult:
     params = default_params() if args.params is None else load_params(args.params)
     if args.fast:   # the test-suite preset: P2 on the level-2 mesh (the default), because at
@@ -174,13 +180,20 @@ def run(args) -> CaseResult:
     notes["softening"] = r["end"] / r["peak"] - 1.0
     if args.study:
         lam = params.regularization.lam
-        stiff = solve(params, args.element, args.level, args.dense, args.strain, None, False,
-                      lam=10 * lam)
-        notes["peak_change_10x_lambda"] = stiff["peak"] / r["peak"] - 1.0
+        try:
+            stiff = solve(params, args.element, args.level, args.dense, args.strain, None,
+                          False, lam=10 * lam)
+            notes["peak_change_10x_lambda"] = stiff["peak"] / r["peak"] - 1.0
+            notes["lambda_10x"] = {k: stiff[k] for k in STUDY_KEYS}
+        except ConvergenceError as exc:
+            notes["lambda_10x"] = failure_note(exc, "stress_ratio", "axial_strain")
         for level in (1, 2, 3):
-            m = r if level == args.level else solve(params, args.element, level, args.dense,
-                                                    args.strain, None, False)
-            notes[f"level{level}"] = {k: m[k] for k in ("dofs", "peak", "end", "angle")}
+            try:
+                m = r if level == args.level else solve(params, args.element, level, args.dense,
+                                                        args.strain, None, False)
+                notes[f"level{level}"] = {k: m[k] for k in STUDY_KEYS}
+            except ConvergenceError as exc:
+                notes[f"level{level}"] = failure_note(exc, "stress_ratio", "axial_strain")
     return CaseResult(figures, notes, r["files"])
 
 

@@ -33,13 +33,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # this checkout
 
 import numpy as np  # noqa: E402
 
-from contfab.cases import CaseResult, Figure, main  # noqa: E402
+from contfab.cases import CaseResult, Figure, failure_note, main  # noqa: E402
 from contfab.fem import analysis, loads  # noqa: E402
 from contfab.fem import mesh as meshes  # noqa: E402
 from contfab.fem.assembly import Discretization  # noqa: E402
 from contfab.fem.elements import ELEMENTS  # noqa: E402
 from contfab.fem.material import TierMaterial  # noqa: E402
-from contfab.fem.solver import NewtonOptions, Solver, Stage  # noqa: E402
+from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver, Stage  # noqa: E402
 from contfab.params import ParamError, default_params, load_params  # noqa: E402
 from dem.fileio import write_csv  # noqa: E402
 
@@ -48,8 +48,21 @@ DESCRIPTION = "rigid rough strip footing: N_q (Prandtl-Reissner) and N_gamma (Ma
 B_HALF = 1.0
 MECHANISM_SCALE = {"Nq": 1.0, "Ngamma": 0.6}
 """The N_γ mechanism (rough footing, self-weight) is about 0.6x the size of Prandtl's."""
+PUSH_DT_MIN = 1e-6
+"""Smallest push step. With ψ < φ a zone at yield with almost no plastic flow makes its
+points flip between elastic and plastic from one Newton iterate to the next, leaving a
+residual ∝ the step (2e-7 at 1e-6 of the push, 3e-5 at 1e-4; docs/fem_validation.md §5),
+so these steps need to be small; the associated runs never get near it."""
 MARTIN_2005_NGAMMA_ROUGH = {30.0: 14.75}
 """Exact N_γ, rough strip footing, associated flow (Martin 2005, method of characteristics)."""
+
+
+def reference_factor(factor: str, phi_deg: float) -> float:
+    """The exact factor for associated flow: Prandtl-Reissner N_q, or Martin's N_γ (NaN
+    where no exact value is tabulated)."""
+    if factor == "Nq":
+        return prandtl_nq(phi_deg)
+    return MARTIN_2005_NGAMMA_ROUGH.get(phi_deg, math.nan)
 
 
 def prandtl_nq(phi_deg: float) -> float:
@@ -126,7 +139,6 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
         q = stress_scale
         stress0[:, 0] = stress0[:, 1] = -q
         f_dead += loads.surface_load(disc, "free", pressure=q)
-        reference = prandtl_nq(phi_deg)
         norm = q * B_HALF                       # N_q = Q / (q b)
     else:
         gamma = stress_scale / B_HALF
@@ -134,8 +146,8 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
         stress0[:, 1] = gamma * y
         stress0[:, 0] = k0 * gamma * y
         f_dead += loads.body_force(disc, by=-gamma)
-        reference = MARTIN_2005_NGAMMA_ROUGH.get(phi_deg, math.nan)
         norm = gamma * B_HALF**2                # N_γ = q_u / (½ γ B) = Q / (γ b²)
+    reference = reference_factor(factor, phi_deg)
     solver = Solver(disc, material, stress0, material.initial_state(n), NewtonOptions())
     dofs = {f"{s}_{c}": loads.boundary_dofs(disc, s, c)
             for s, c in (("left", "x"), ("right", "x"), ("bottom", "x"), ("bottom", "y"),
@@ -152,7 +164,7 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
     delta = push * scale * B_HALF / lam
     increment = np.where(np.isin(fixed, dofs["footing_y"]), -delta, 0.0)
     stages.append(Stage("push", fixed, increment, f_dead, dt0=min(0.02, dt_max), dt_max=dt_max,
-                        dt_min=1e-4))
+                        dt_min=PUSH_DT_MIN))
 
     def measure(s: Solver) -> dict:
         u = s.committed.u[dofs["footing_y"]]
@@ -199,11 +211,17 @@ def add_arguments(p) -> None:
 
 TABLE_COLUMNS = ("factor", "phi", "psi", "element", "level", "dofs", "computed", "reference",
                  "relative_error", "drop_vs_associated", "plateau_drift", "steps",
-                 "median_newton", "wall_s")
+                 "median_newton", "wall_s", "status")
 
 
 def run(args) -> CaseResult:
-    """Every (φ, ψ, element, level) combination; a table CSV when there is more than one."""
+    """Every (φ, ψ, element, level) combination; a table CSV when there is more than one.
+
+    A combination whose Newton fails (ConvergenceError) is recorded in the notes
+    (:func:`contfab.cases.failure_note`: message, last converged settlement step and
+    factor) and as a ``failed`` table row, and the others still run; only the run behind
+    the headline figure (the first associated one with an exact reference) re-raises.
+    """
     params = default_params() if args.params is None else load_params(args.params)
     if args.lam is not None:
         params = params.replace("regularization", lam=args.lam)
@@ -219,11 +237,22 @@ def run(args) -> CaseResult:
                 associated = None
                 for psi_arg in args.psi:
                     psi = phi if psi_arg == "phi" else float(psi_arg)
-                    r = solve(phi, psi, args.factor, element, level, params, args.out,
-                              not args.quiet, apex_stiffness=args.apex_stiffness)
                     label = f"{symbol}(phi={phi:g}, psi={psi:g}, {element}, level {level})"
                     if len(args.element) == len(args.level) == 1:
                         label = f"{symbol}(phi={phi:g}, psi={psi:g})"
+                    headline = not figures and psi == phi and \
+                        math.isfinite(reference_factor(args.factor, phi))
+                    try:
+                        r = solve(phi, psi, args.factor, element, level, params, args.out,
+                                  not args.quiet, apex_stiffness=args.apex_stiffness)
+                    except ConvergenceError as exc:
+                        if headline:
+                            raise
+                        notes[label] = failure_note(exc, args.factor, "settlement")
+                        rows.append([args.factor, phi, psi, element, level, math.nan, math.nan,
+                                     reference_factor(args.factor, phi), math.nan, math.nan,
+                                     math.nan, math.nan, math.nan, math.nan, "failed"])
+                        continue
                     if psi == phi:
                         associated = r["computed"]
                     drop = r["computed"] / associated - 1.0 if associated else math.nan
@@ -236,7 +265,8 @@ def run(args) -> CaseResult:
                         notes[label]["drop_vs_associated"] = drop
                     rows.append([args.factor, phi, psi, element, level, r["dofs"], r["computed"],
                                  r["reference"], r["computed"] / r["reference"] - 1.0, drop,
-                                 r["plateau_drift"], r["steps"], r["median_newton"], r["wall_s"]])
+                                 r["plateau_drift"], r["steps"], r["median_newton"], r["wall_s"],
+                                 "converged"])
                     files += r["files"]
     if not figures:
         raise ParamError("no reference for these angles and flow rules: the references are "

@@ -55,6 +55,25 @@ class CaseResult:
                 "files": [str(f) for f in self.files]}
 
 
+def failure_note(exc, *columns: str) -> dict:
+    """The notes entry of a study sub-run that ended in a ConvergenceError ``exc``.
+
+    Records the error message, where the last converged step was (stage, t), the last
+    converged values of the case's measured ``columns`` and the largest value of the
+    first one so far (None where no step of the recorded stages converged). A study
+    continues with its other sub-runs; only the run behind the headline figure re-raises.
+    """
+    curve = getattr(exc, "curve", None)
+    have = curve is not None and bool(curve.rows)
+    last = {c: float(curve.column(c)[-1]) if have and c in curve.columns else None
+            for c in columns}
+    top = columns[0] if columns else None
+    peak = float(curve.column(top).max()) if have and top in curve.columns else None
+    return {"failed": True, "message": str(exc), "last_converged_stage": exc.last.stage,
+            "last_converged_t": float(exc.last.t), "last_converged": last,
+            f"max_{top}_so_far": peak}
+
+
 def case_names() -> list[str]:
     """Names of the case scripts in ``cases/``."""
     return sorted(p.stem for p in CASES_DIR.glob("*.py") if not p.stem.startswith("_"))

@@ -111,3 +111,65 @@ def test_simple_shear_reversal_fast_against_the_point_driver_and_the_dem(tmp_pat
     for g in ("1", "-1"):
         assert abs(t2[f"theta_p_at_gamma_{g}"] - t2[f"dem_theta_p_at_gamma_{g}"]) < 15.0
     assert "simple_shear_reversal_vs_dem.csv" in {p.name for p in tmp_path.iterdir()}
+
+
+def _failure(value: float):
+    """A ConvergenceError as the analysis driver raises it, with a one-row curve."""
+    from contfab.fem.analysis import RunResult
+    from contfab.fem.solver import ConvergenceError, FieldState
+
+    last = FieldState("push", 0.25, *([None] * 7))
+    curve = RunResult(["stage", "t", "Ngamma", "settlement", "stress_ratio", "axial_strain"],
+                      [["push", 0.25, value, 0.01, value, 0.001]])
+    return ConvergenceError("stage 'push': no converged step beyond t = 0.25", last, [], curve)
+
+
+def test_a_failed_study_run_is_recorded_and_the_others_still_run(monkeypatch):
+    """strip_footing --psi phi 10 0: the psi = 10 run fails, psi = 0 still runs, the table
+    row says 'failed'; a failure of the headline (associated) run is still an error."""
+    from contfab.cases import build_parser, load_case
+    from contfab.fem.solver import ConvergenceError
+
+    case = load_case("strip_footing")
+    done = []
+
+    def fake(phi, psi, *a, **k):
+        done.append(psi)
+        if psi == 10.0:
+            raise _failure(12.5)
+        return {"computed": 14.0 + psi / 10, "reference": case.reference_factor("Ngamma", phi),
+                "peak": 15.0, "plateau_drift": 0.0, "dofs": 1, "wall_s": 0.0, "steps": 1,
+                "median_newton": 1.0, "residuals": [[1e-9]], "files": []}
+
+    monkeypatch.setattr(case, "solve", fake)
+    args = build_parser(case, "x").parse_args(["--factor", "Ngamma", "--phi", "30", "--psi",
+                                               "phi", "10", "0"])
+    args.out = None
+    result = case.run(args)
+    assert done == [30.0, 10.0, 0.0]
+    failed = result.notes["N_gamma(phi=30, psi=10)"]
+    assert failed["failed"] and "no converged step" in failed["message"]
+    assert failed["last_converged"] == {"Ngamma": 12.5, "settlement": 0.01}
+    assert result.notes["N_gamma(phi=30, psi=0)"]["drop_vs_associated"] == pytest.approx(14 / 17 - 1)
+    args.psi = ["phi"]
+    monkeypatch.setattr(case, "solve", lambda *a, **k: (_ for _ in ()).throw(_failure(1.0)))
+    with pytest.raises(ConvergenceError):
+        case.run(args)
+
+    biax = load_case("biaxial_shear_band")
+    main_run = {"peak": 3.0, "peak_strain": 0.01, "end": 2.5, "angle": 50.0, "phi0": 30.0,
+                "psi0": 10.0, "band_c_min": 0.8, "dofs": 1, "wall_s": 0.0, "steps": 1,
+                "median_newton": 1.0, "files": []}
+
+    def fake_biax(params, element, level, dense, strain, out, progress, lam=None):
+        if lam is not None:
+            raise _failure(2.9)
+        return main_run
+
+    monkeypatch.setattr(biax, "solve", fake_biax)
+    args = build_parser(biax, "x").parse_args(["--study"])
+    args.out = None
+    notes = biax.run(args).notes
+    assert notes["lambda_10x"]["failed"] and "peak_change_10x_lambda" not in notes
+    assert notes["lambda_10x"]["max_stress_ratio_so_far"] == 2.9
+    assert all(notes[f"level{k}"]["peak"] == 3.0 for k in (1, 2, 3))

@@ -149,3 +149,16 @@ def test_bad_ties_are_clear_errors():
         Stage("s", fixed, np.zeros(2), f, ties=np.array([2, 3]))
     with pytest.raises(ValueError, match="2 ties but tie_factors of shape"):
         Stage("s", fixed, np.zeros(2), f, ties=np.array([[2, 3], [4, 3]]), tie_factors=np.ones(3))
+
+
+def test_rigid_plastic_limit_plateau_converges_at_every_step():
+    """The smooth-platen block (tier 0, φ = 30°) at λ = 1e8, and pushed to 1000 collapse
+    displacements in steps of the whole push: the committed-state start overshot along
+    the collapse mode (first correction 3000x the converged increment) and ended in
+    ConvergenceError; from the extrapolated increment every step converges to the
+    Newton tolerance (none accepted at the stall tolerance) and σ1 = Kp p to 1e-9."""
+    from contfab.stability.fem_matrix import biaxial
+
+    for m in (biaxial(lam=1e8), biaxial(dt0=1.0, push=1000.0, dt_min=1e-6)):
+        assert m.accuracy < 1e-9, m.note
+        assert " 0 accepted at the stall tolerance" in m.note, m.note

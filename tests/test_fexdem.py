@@ -17,7 +17,8 @@ from dem.rve import PathRunner
 from conftest import prepared
 
 NO_RELAX = CellOptions(force_tol=np.inf, kinetic_tol=np.inf)
-NEWTON = NewtonOptions(tol=2e-3, tol_stall=5e-3, max_iter=12, line_search=0, spin_step=0)
+NEWTON = NewtonOptions(tol=2e-3, tol_stall=5e-3, max_iter=12, line_search=0, spin_step=0,
+                       extrapolate=False)
 
 
 @pytest.fixture(scope="session")

@@ -7,7 +7,8 @@ quantities), ``NAME_curve.png`` and ``NAME_plastic_zone.png`` (the increment of
 plastic shear strain over the last steps: the active mechanism). When Newton
 fails below the minimum step, the last converged state is written as a frame, the
 curve so far is saved, ``NAME_failure.json`` holds the report, and the
-:class:`~contfab.fem.solver.ConvergenceError` is re-raised with the paths added.
+:class:`~contfab.fem.solver.ConvergenceError` is re-raised with the paths added and
+the curve so far as its ``curve`` (also without an output directory).
 """
 from __future__ import annotations
 
@@ -87,6 +88,7 @@ def run(solver: Solver, stages: Sequence[Stage], measure: Callable[[Solver], dic
                     if series is not None and outputs.frame_every and step % outputs.frame_every == 0:
                         series.write(solver.committed, step)
     except ConvergenceError as exc:
+        exc.curve = result
         if outputs.outdir is not None:
             result.files += _write(solver, series, result, outputs, gp_before)
             report = Path(outputs.outdir) / f"{outputs.name}_failure.json"
@@ -95,7 +97,7 @@ def run(solver: Solver, stages: Sequence[Stage], measure: Callable[[Solver], dic
             result.files.append(report)
             raise ConvergenceError(f"{exc}\nlast converged state and curve written to "
                                    f"{outputs.outdir} (report {report.name})",
-                                   exc.last, exc.attempts) from None
+                                   exc.last, exc.attempts, result) from None
         raise
     if outputs.outdir is not None:
         result.files += _write(solver, series, result, outputs, gp_before)

@@ -28,6 +28,21 @@ ends with :class:`ConvergenceError`, which carries the last converged state.
 
 Convergence is scale-free: |r_f| ≤ tol · max(|f_ext|, |r_c|) (Euclidean norms),
 the residual on free DOFs against the applied and reaction forces.
+
+**Predictor** (docs/fem_validation.md §5 has the measurements). Near a collapse
+mechanism or a softening peak the Newton matrix has modes whose stiffness is O(p)
+against the O(λ p) of the rest (the plastic tangent is stiff only across the flow
+direction), and with softening and non-associated flow some are negative (the biaxial
+peak at λ = 1e4: a real eigenvalue of -0.008 and a pair -0.30 ± 1.4i times the smallest
+elastic one). The first correction from the committed state and tangent, which carries
+the prescribed increment, then overshoots along those modes (14x the converged
+increment there, 3000x on a λ = 1e8 collapse plateau) and flips hundreds of points
+between elastic and plastic. So after a stage's first step the iteration starts from the
+extrapolated increment, u⁰ = u_n + (t - t_n)(u_n - u_{n-1})/(t_n - t_{n-1}), with u⁰ = ū(t) on
+the constrained DOFs (``NewtonOptions.extrapolate``). Where that start cycles instead
+(points at neutral loading flipping with a period of 2-7 iterations), the same step is
+tried once more from the committed state before it is cut: the two starts lead to
+different sequences of elastic/plastic point sets, and one converging is enough.
 """
 from __future__ import annotations
 
@@ -42,12 +57,17 @@ from contfab.fem.assembly import Discretization
 
 
 class ConvergenceError(ValueError):
-    """Newton failed below the minimum step; ``last`` is the last converged state."""
+    """Newton failed below the minimum step; ``last`` is the last converged state.
 
-    def __init__(self, message: str, last: "FieldState", attempts: list):
+    ``curve`` is what the driver measured up to that state (set by
+    :func:`contfab.fem.analysis.run`: its :class:`~contfab.fem.analysis.RunResult`), or None.
+    """
+
+    def __init__(self, message: str, last: "FieldState", attempts: list, curve=None):
         super().__init__(message)
         self.last = last
         self.attempts = attempts
+        self.curve = curve
 
 
 class Material(Protocol):
@@ -131,16 +151,19 @@ class Stage:
 
 @dataclass(frozen=True)
 class NewtonOptions:
-    """Newton tolerances, step control and line search.
+    """Newton tolerances, step control, predictor and line search.
 
     A step is converged when the relative free residual is <= ``tol``, or <= ``tol_stall``
     once it stops decreasing (halved in none of the last three iterations) or at the
     last iteration: at a softening peak, points flipping between elastic unloading and
     plastic loading made Newton cycle at ~5e-6 forever (biaxial case). Records keep the
     residual sequence, so such steps are visible (:attr:`StepRecord.stalled`).
-    A step grows by ``grow`` after <= ``easy_iter`` iterations and is cut by ``cut`` on
-    failure. ``line_search`` halvings of a correction are tried when it does not reduce
-    the free residual (apex/face switching made plain Newton cycle on the N_γ footing);
+    ``max_iter`` bounds the linear solves of a step. A step grows by ``grow`` after
+    <= ``easy_iter`` solves and is cut by ``cut`` on failure. ``extrapolate`` starts each
+    step but a stage's first from the extrapolated increment, and on its failure from the
+    committed state, before cutting (module doc; False: the committed state only).
+    ``line_search`` halvings of a correction are tried when it does not reduce the free
+    residual (apex/face switching made plain Newton cycle on the N_γ footing);
     ``spin_step`` is the difference step of the spin tangent (0: off).
     """
 
@@ -153,6 +176,7 @@ class NewtonOptions:
     diverge: float = 1e6
     spin_step: float = 1e-7
     line_search: int = 4
+    extrapolate: bool = True
 
     def __post_init__(self):
         if not 0 < self.tol <= self.tol_stall < 1:
@@ -170,19 +194,25 @@ class NewtonOptions:
 
 @dataclass
 class StepRecord:
-    """One committed step: stage, t, dt, relative residuals per iteration, failed attempts."""
+    """One committed step: stage, t, dt, relative residuals per iterate, failed attempts.
+
+    With an extrapolated start (``extrapolated``) the first residual is the predictor's,
+    before any linear solve.
+    """
 
     stage: str
     t: float
     dt: float
     residuals: list[float]
     cuts: int = 0
+    extrapolated: bool = False
 
     tol: float = 1e-8
 
     @property
     def iterations(self) -> int:
-        return len(self.residuals)
+        """Newton iterations: the linear solves of the step."""
+        return len(self.residuals) - self.extrapolated
 
     @property
     def stalled(self) -> bool:
@@ -248,6 +278,21 @@ class ConstrainedSystem:
         return r[self.free] if self.tie_map is None else self.tie_map.T @ r[self.free]
 
 
+@dataclass
+class _Iterate:
+    """A Newton iterate: displacement, strain and spin increments, update result, residual,
+    |r_f| and relative |r_f|; ``spin_tangent`` is filled in once the iterate is accepted."""
+
+    u: np.ndarray
+    dstrain: np.ndarray
+    dspin: np.ndarray
+    res: object
+    r: np.ndarray
+    free: float
+    rel: float
+    spin_tangent: np.ndarray | None = None
+
+
 def norm(x: np.ndarray) -> float:
     """Euclidean norm without BLAS: a threaded OpenBLAS dot on a loaded 2-core machine
     took 12 ms for 54k entries (vs 8 µs single-threaded), more than an assembly."""
@@ -282,42 +327,73 @@ class Solver:
         self.records: list[StepRecord] = []
 
     def run_stage(self, stage: Stage) -> Iterator[StepRecord]:
-        """Advance ``stage`` from t = 0 to 1, yielding a record after each committed step."""
+        """Advance ``stage`` from t = 0 to 1, yielding a record after each committed step.
+
+        Each step is tried from the extrapolated increment and then from the committed
+        state (only the latter for a stage's first step, or without ``extrapolate``);
+        if neither converges the step is cut.
+        """
         system = ConstrainedSystem(self.disc, stage.fixed_dofs, stage.ties, stage.tie_factors)
         u_start = self.committed.u[system.fixed].copy()
-        t, dt, attempts = 0.0, stage.dt0, []
+        t, dt, attempts, cuts, rate = 0.0, stage.dt0, [], 0, None
         while t < 1.0 - 1e-12:
             dt = min(dt, 1.0 - t)
-            trial, residuals, reason = self._newton(stage, system, u_start, t + dt)
+            starts = [None] if rate is None else [self.committed.u + dt * rate, None]
+            for predictor in starts:
+                trial, residuals, reason = self._newton(stage, system, u_start, t + dt, predictor)
+                if trial is not None:
+                    break
+                attempts.append({"t": t + dt, "dt": dt, "reason": reason, "residuals": residuals,
+                                 "start": "committed" if predictor is None else "extrapolated"})
             if trial is None:
-                attempts.append({"t": t + dt, "dt": dt, "reason": reason, "residuals": residuals})
                 if dt <= stage.dt_min * (1 + 1e-9):
-                    raise ConvergenceError(self._failure_message(stage, attempts), self.committed,
-                                           attempts)
+                    raise ConvergenceError(self._failure_message(stage, attempts, cuts),
+                                           self.committed, attempts)
                 dt = max(dt * self.options.cut, stage.dt_min)
+                cuts += 1
                 continue
+            if self.options.extrapolate:
+                rate = (trial.u - self.committed.u) / dt
             self.committed = trial
             t += dt
-            record = StepRecord(stage.name, t, dt, residuals, cuts=len(attempts),
-                                tol=self.options.tol)
+            record = StepRecord(stage.name, t, dt, residuals, cuts=cuts,
+                                extrapolated=predictor is not None, tol=self.options.tol)
             self.records.append(record)
-            attempts = []
+            attempts, cuts = [], 0
             yield record
             if record.iterations <= self.options.easy_iter:
                 dt = min(dt * self.options.grow, stage.dt_max)
         if stage.reset_displacement:
             self.committed = replace(self.committed, u=np.zeros_like(self.committed.u))
 
-    def _newton(self, stage: Stage, system: ConstrainedSystem, u_start: np.ndarray, t: float):
-        """One step to stage parameter ``t``: (trial state or None, residual history, reason)."""
+    def _newton(self, stage: Stage, system: ConstrainedSystem, u_start: np.ndarray, t: float,
+                predictor: np.ndarray | None):
+        """One step to stage parameter ``t``: (trial state or None, residual history, reason).
+
+        ``predictor`` (the extrapolated displacement, or None) is the first iterate, with
+        the constrained DOFs set to ū(t); without it the first correction, from the
+        committed state and tangent, carries the prescribed increment.
+        """
         c, opt, disc = self.committed, self.options, self.disc
         f_ext = stage.f_dead if stage.f_ramp is None else stage.f_dead + t * stage.f_ramp
         target = u_start + t * stage.increment
-        u = c.u.copy()
-        r = disc.internal_force(c.stress) - f_ext
-        tangent, spin_tangent = c.tangent, c.spin_tangent
         residuals: list[float] = []
         current = None
+        if predictor is not None:
+            u = predictor.copy()
+            u[system.fixed] = target
+            current = self._evaluate(c, system, f_ext, u)
+            if current is None:
+                return None, residuals, "constitutive update failed (status -1) at the predictor"
+            residuals.append(current.rel)
+            tangent, spin_tangent = self._accept(c, current)
+            if current.rel <= opt.tol:
+                return self._field(stage, t, current), residuals, ""
+            r = current.r
+        else:
+            u = c.u
+            r = disc.internal_force(c.stress) - f_ext
+            tangent, spin_tangent = c.tangent, c.spin_tangent
         for it in range(opt.max_iter):
             try:
                 du = system.solve(disc.tangent(tangent, spin_tangent), r,
@@ -326,46 +402,61 @@ class Solver:
                 return None, residuals, f"singular tangent ({exc}): a mechanism is free to move"
             if not np.all(np.isfinite(du)):
                 return None, residuals, "non-finite Newton correction"
-            trial = self._line_search(c, system, f_ext, u, du, current)
-            if trial is None:
+            current = self._line_search(c, system, f_ext, u, du, current)
+            if current is None:
                 return None, residuals, "constitutive update failed (status -1) along the step"
-            u, current = trial[0], trial[1:]
-            res, r, dstrain, dspin, _, rel = current
+            u, r, rel = current.u, current.r, current.rel
             residuals.append(rel)
             if not np.isfinite(rel) or rel > opt.diverge:
                 return None, residuals, f"residual diverged ({rel:.3g})"
-            tangent = res.tangent
-            spin_tangent = self._spin_tangent(c.stress, c.state, dstrain, dspin, res)
-            stalled = len(residuals) > 3 and rel > 0.5 * min(residuals[-4:-1])
+            tangent, spin_tangent = self._accept(c, current)
+            stalled = it >= 3 and rel > 0.5 * min(residuals[-4:-1])
             if rel <= opt.tol or (rel <= opt.tol_stall and (stalled or it == opt.max_iter - 1)):
-                return FieldState(stage.name, t, u, res.stress, res.state, tangent,
-                                  spin_tangent, res.status, r), residuals, ""
+                return self._field(stage, t, current), residuals, ""
         return None, residuals, f"no convergence in {opt.max_iter} iterations"
 
-    def _line_search(self, c: FieldState, system: ConstrainedSystem, f_ext, u, du, current):
+    def _evaluate(self, c: FieldState, system: ConstrainedSystem, f_ext, u) -> _Iterate | None:
+        """The update over u - u_n from the committed state, its residual and tangents;
+        None if the update fails at some point."""
+        dstrain, dspin = self.disc.strain(u - c.u)
+        res = self.material.update(c.stress, c.state, dstrain, dspin)
+        if np.any(res.status < 0):
+            return None
+        r = self.disc.internal_force(res.stress) - f_ext
+        free = norm(system.free_residual(r))
+        rel = free / (max(norm(f_ext), norm(r[system.fixed])) or 1.0)
+        return _Iterate(u, dstrain, dspin, res, r, free, rel)
+
+    def _accept(self, c: FieldState, it: _Iterate) -> tuple[np.ndarray, np.ndarray]:
+        """The Newton-matrix tangents (D, g) at an accepted iterate (g stored on it)."""
+        it.spin_tangent = self._spin_tangent(c.stress, c.state, it.dstrain, it.dspin, it.res)
+        return np.ascontiguousarray(it.res.tangent), it.spin_tangent
+
+    def _line_search(self, c: FieldState, system: ConstrainedSystem, f_ext, u, du,
+                     current: _Iterate | None) -> _Iterate | None:
         """u + α du, α = 1, 1/2, ... (``line_search`` halvings) until |r_f| decreases.
 
-        The first correction of a step (``current`` None) carries the prescribed
-        displacement increment and is taken whole. Returns (u, update result, r,
-        strain, spin, |r_f|, relative residual), or None if the update fails at every α.
+        The first correction of a step without a predictor (``current`` None) carries the
+        prescribed displacement increment and is taken whole. Returns the first α that
+        reduces |r_f|, else the best one tried; None if the update fails at every α.
         """
         alpha, best = 1.0, None
         for _ in range(self.options.line_search + 1):
-            u_try = u + alpha * du
-            dstrain, dspin = self.disc.strain(u_try - c.u)
-            res = self.material.update(c.stress, c.state, dstrain, dspin)
-            if not np.any(res.status < 0):
-                r = self.disc.internal_force(res.stress) - f_ext
-                free = norm(system.free_residual(r))
-                rel = free / (max(norm(f_ext), norm(r[system.fixed])) or 1.0)
-                if best is None or not free >= best[5]:
-                    best = (u_try, res, r, dstrain, dspin, free, rel)
-                if current is None or not free >= current[4]:
+            trial = self._evaluate(c, system, f_ext, u + alpha * du)
+            if trial is not None:
+                if best is None or not trial.free >= best.free:
+                    best = trial
+                if current is None or not trial.free >= current.free:
                     return best
             if current is None:
                 return best
             alpha *= 0.5
         return best
+
+    def _field(self, stage: Stage, t: float, it: _Iterate) -> FieldState:
+        return FieldState(stage.name, t, it.u, it.res.stress, it.res.state,
+                          np.ascontiguousarray(it.res.tangent), it.spin_tangent, it.res.status,
+                          it.r)
 
     def _spin_tangent(self, stress_n, state_n, dstrain, dspin, res) -> np.ndarray:
         """g = ∂σ/∂ω: the material's own (``material.spin_tangent``) if it has one, else a
@@ -379,12 +470,13 @@ class Solver:
         shifted = self.material.update(stress_n, state_n, dstrain, dspin + h)
         return (shifted.stress - res.stress) / h
 
-    def _failure_message(self, stage: Stage, attempts: list) -> str:
+    def _failure_message(self, stage: Stage, attempts: list, cuts: int) -> str:
         last = attempts[-1]
         seq = ", ".join(f"{x:.2e}" for x in last["residuals"]) or "none"
         return (f"stage {stage.name!r}: no converged step beyond t = {self.committed.t:.6g} "
-                f"(step cut {len(attempts)} times down to the minimum "
-                f"dt = {stage.dt_min:g}); last attempt: {last['reason']}; relative residuals [{seq}]")
+                f"(step cut {cuts} times down to the minimum dt = {stage.dt_min:g}, "
+                f"{len(attempts)} attempts); last attempt (from the {last['start']} state): "
+                f"{last['reason']}; relative residuals [{seq}]")
 
     def reactions(self, dofs: np.ndarray) -> float:
         """Sum of the committed residual over ``dofs``: the support force on the body."""

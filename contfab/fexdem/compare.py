@@ -33,7 +33,8 @@ from contfab.models import tiers
 from contfab.params import Params
 from dem.fileio import atomic_path, write_json
 
-DEM_NEWTON = NewtonOptions(tol=5e-3, tol_stall=2e-2, max_iter=12, line_search=0, spin_step=0)
+DEM_NEWTON = NewtonOptions(tol=5e-3, tol_stall=2e-2, max_iter=12, line_search=0, spin_step=0,
+                           extrapolate=False)   # each trial is a DEM run: the measured path
 """FE×DEM Newton: the tolerance is set by the cells' stress noise (150 discs relaxed to an
 unbalanced force ratio of 1e-2: relative residuals stall at ~5e-3, measured on the biaxial case)."""
 
