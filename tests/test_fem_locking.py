@@ -39,8 +39,10 @@ def _punch_curve(element):
 
 
 def _late(curve):
-    """Bearing pressures over the last fifth of the push."""
-    return curve[curve[:, 0] >= 0.8, 1]
+    """Bearing pressures at the start and the end of the last fifth of the push, interpolated
+    on the step grid (the grid moves with round-off: a step ending at t = 0.7999 instead of
+    0.803 once dropped a row from a window of rows and failed the test)."""
+    return np.interp([0.8, 1.0], curve[:, 0], curve[:, 1])
 
 
 def test_p1_triangles_lock_under_isochoric_flow():
