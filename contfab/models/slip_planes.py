@@ -188,12 +188,7 @@ def arc_maximum(g, u0, n_search, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     and the higher result is the maximum — two peaks nearly tied could otherwise be decided
     by the grid's samples, not by their values. Otherwise ``u0`` starts the refinement (a
     warm start) inside the whole arc. The grid's cos u, sin u follow by rotation through du.
-
-    With φ independent of θ (pc = ps = 0) h = -g R sin u + tan φ (m + R cos u) is one
-    sinusoid: its maximum is u = atan2(-g, tan φ), inside the arc, in closed form.
     """
-    if pc == 0.0 and ps == 0.0:
-        return np.arctan2(-g, np.tan(min(max(phi0, phi_lo), phi_hi)))
     kinks = has_kinks(phi0, pc, ps, phi_lo, phi_hi)
     if g < 0.0:
         lo = 0.0
