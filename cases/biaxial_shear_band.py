@@ -180,6 +180,7 @@ def run(args) -> CaseResult:
     notes["softening"] = r["end"] / r["peak"] - 1.0
     if args.study:
         lam = params.regularization.lam
+        t0 = time.perf_counter()
         try:
             stiff = solve(params, args.element, args.level, args.dense, args.strain, None,
                           False, lam=10 * lam)
@@ -187,13 +188,16 @@ def run(args) -> CaseResult:
             notes["lambda_10x"] = {k: stiff[k] for k in STUDY_KEYS}
         except ConvergenceError as exc:
             notes["lambda_10x"] = failure_note(exc, "stress_ratio", "axial_strain")
+            notes["lambda_10x"]["wall_s"] = time.perf_counter() - t0
         for level in (1, 2, 3):
+            t0 = time.perf_counter()
             try:
                 m = r if level == args.level else solve(params, args.element, level, args.dense,
                                                         args.strain, None, False)
                 notes[f"level{level}"] = {k: m[k] for k in STUDY_KEYS}
             except ConvergenceError as exc:
                 notes[f"level{level}"] = failure_note(exc, "stress_ratio", "axial_strain")
+                notes[f"level{level}"]["wall_s"] = time.perf_counter() - t0
     return CaseResult(figures, notes, r["files"])
 
 

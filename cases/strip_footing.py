@@ -242,6 +242,7 @@ def run(args) -> CaseResult:
                         label = f"{symbol}(phi={phi:g}, psi={psi:g})"
                     headline = not figures and psi == phi and \
                         math.isfinite(reference_factor(args.factor, phi))
+                    t0 = time.perf_counter()
                     try:
                         r = solve(phi, psi, args.factor, element, level, params, args.out,
                                   not args.quiet, apex_stiffness=args.apex_stiffness)
@@ -249,6 +250,7 @@ def run(args) -> CaseResult:
                         if headline:
                             raise
                         notes[label] = failure_note(exc, args.factor, "settlement")
+                        notes[label]["wall_s"] = time.perf_counter() - t0
                         rows.append([args.factor, phi, psi, element, level, math.nan, math.nan,
                                      reference_factor(args.factor, phi), math.nan, math.nan,
                                      math.nan, math.nan, math.nan, math.nan, "failed"])
