@@ -21,10 +21,9 @@ import numpy as np
 
 from contfab.material_point import spin_derivative
 from contfab.models import tiers
+from contfab.models.cone import STATUS_APEX
 from contfab.params import ParamError, Params
 from contfab.tensors import isotropic_stiffness
-
-APEX = 2
 
 
 class TierMaterial:
@@ -49,7 +48,7 @@ class TierMaterial:
         """The tier's update over all points, apex tangents regularized for the Newton matrix."""
         res = tiers.update(self.tier, stress_n, state_n, dstrain, dspin, self.params)
         if self.apex_stiffness > 0.0:
-            res.tangent[res.status == APEX] = self._apex_tangent
+            res.tangent[res.status == STATUS_APEX] = self._apex_tangent
         return res
 
     def spin_tangent(self, stress_n, state_n, dstrain, dspin, res) -> np.ndarray:

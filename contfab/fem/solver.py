@@ -27,7 +27,10 @@ trial leaves no trace in the committed state. Below the minimum step the stage
 ends with :class:`ConvergenceError`, which carries the last converged state.
 
 Convergence is scale-free: |r_f| ≤ tol · max(|f_ext|, |r_c|) (Euclidean norms),
-the residual on free DOFs against the applied and reaction forces.
+the residual on free DOFs against the applied and reaction forces. A failed step's
+message counts the points at the apex of the cone (σ = 0, no strength): when they are
+the majority the body has no confinement and the problem no unique solution (a
+cohesionless block at p = 0, docs/stability.md), the limit the message then names.
 
 **Predictor** (docs/fem_validation.md §5 has the measurements). Near a collapse
 mechanism or a softening peak the Newton matrix has modes whose stiffness is O(p)
@@ -54,6 +57,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from contfab.fem.assembly import Discretization
+from contfab.models.cone import STATUS_APEX
 
 
 class ConvergenceError(ValueError):
@@ -399,7 +403,7 @@ class Solver:
                 du = system.solve(disc.tangent(tangent, spin_tangent), r,
                                   target - u[system.fixed])
             except RuntimeError as exc:  # SuperLU: "Factor is exactly singular"
-                return None, residuals, f"singular tangent ({exc}): a mechanism is free to move"
+                return None, residuals, self._why(f"singular tangent ({exc}): a mechanism is free to move", current)
             if not np.all(np.isfinite(du)):
                 return None, residuals, "non-finite Newton correction"
             current = self._line_search(c, system, f_ext, u, du, current)
@@ -408,12 +412,30 @@ class Solver:
             u, r, rel = current.u, current.r, current.rel
             residuals.append(rel)
             if not np.isfinite(rel) or rel > opt.diverge:
-                return None, residuals, f"residual diverged ({rel:.3g})"
+                return None, residuals, self._why(f"residual diverged ({rel:.3g})", current)
             tangent, spin_tangent = self._accept(c, current)
             stalled = it >= 3 and rel > 0.5 * min(residuals[-4:-1])
             if rel <= opt.tol or (rel <= opt.tol_stall and (stalled or it == opt.max_iter - 1)):
                 return self._field(stage, t, current), residuals, ""
-        return None, residuals, f"no convergence in {opt.max_iter} iterations"
+        return None, residuals, self._why(f"no convergence in {opt.max_iter} iterations", current)
+
+    @staticmethod
+    def _why(reason: str, current: _Iterate | None) -> str:
+        """``reason`` with the share of points at the apex of the cone (status 2) in the last
+        iterate, and, when they are the majority, what that means: a cohesionless material
+        has no strength and the Newton matrix only the apex device's stiffness there, so
+        the iteration has nothing to converge on (the validity range of the module doc)."""
+        if current is None:
+            return reason
+        status = np.asarray(current.res.status)
+        apex = int(np.count_nonzero(status == STATUS_APEX))
+        if apex == 0:
+            return reason
+        reason += f"; {apex} of {status.size} points at the apex of the cone"
+        if apex > status.size // 2:
+            reason += (" (no confinement: most of the body has no strength; accepted range: "
+                       "stress off the apex at most points, i.e. confinement p > 0 or cohesion)")
+        return reason
 
     def _evaluate(self, c: FieldState, system: ConstrainedSystem, f_ext, u) -> _Iterate | None:
         """The update over u - u_n from the committed state, its residual and tangents;
