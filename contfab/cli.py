@@ -324,8 +324,8 @@ def _run_stability(args) -> int:
 def _add_tradeoff(p: argparse.ArgumentParser) -> None:
     from contfab.tradeoff import STUDIES
 
-    p.add_argument("study", choices=[*STUDIES, "all"], help="which study ('all': every one, "
-                                                          "and DIR/tradeoff.md)")
+    p.add_argument("study", nargs="+", choices=[*STUDIES, "all"],
+                   help="which studies ('all': every one); more than one also writes DIR.md")
     p.add_argument("--out", required=True, help="output directory (points are reused on rerun)")
     p.add_argument("--fast", action="store_true", help="the small preset the test suite runs")
     _executor_args(p)

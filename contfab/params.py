@@ -473,10 +473,18 @@ def load_params(path: str | Path) -> Params:
 
 
 def default_params_path() -> Path:
-    """The shipped default parameter file (placeholders until calibration, issue 4)."""
+    """The shipped default parameter file (``contfab calibrate`` at its defaults, issue 4)."""
     return Path(__file__).resolve().parent / "data" / "default_params.toml"
 
 
 def default_params() -> Params:
     """The shipped default parameters, validated."""
     return load_params(default_params_path())
+
+
+def default_params_digest() -> str:
+    """A short content hash of the shipped parameter file: results computed with the
+    defaults carry it, so a recalibration is not mistaken for the same material."""
+    import hashlib
+
+    return hashlib.sha1(default_params_path().read_bytes()).hexdigest()[:12]

@@ -53,6 +53,24 @@ def test_point_increment_fast_is_first_order_resumable_and_writes_files(tmp_path
     assert np.array_equal(again["error"], table["error"])
 
 
+def test_points_of_other_parameters_are_rerun_and_a_list_writes_the_summary(tmp_path, monkeypatch):
+    """A study that drives the shipped parameters keys its points on their file's digest:
+    after a recalibration its stored points are recomputed, not silently reused."""
+    from contfab.tradeoff import point_studies
+    from contfab.tradeoff import run
+
+    written = run(["point_lambda", "tier2_planes"], tmp_path / "docs", fast=True, progress=False)
+    summary = written["summary"].read_text()
+    assert written["summary"] == tmp_path / "docs.md"
+    assert "tradeoff point_lambda tier2_planes --out" in summary and "## tier2_planes" in summary
+    folder = tmp_path / "docs" / "point_lambda" / "points"
+    stamp = {f.name: f.stat().st_mtime_ns for f in folder.glob("*.json")}
+    monkeypatch.setattr(point_studies, "default_params_digest", lambda: "recalibrated")
+    run("point_lambda", tmp_path / "docs", fast=True, progress=False)
+    again = {f.name: f.stat().st_mtime_ns for f in folder.glob("*.json")}
+    assert set(again) == set(stamp) and all(again[k] != stamp[k] for k in stamp)
+
+
 def _table(folder, name):
     return np.genfromtxt(folder / name / f"{name}.csv", delimiter=",", names=True, dtype=None,
                          encoding="utf-8")

@@ -15,7 +15,7 @@ from __future__ import annotations
 import functools
 
 from contfab.cases import load_case
-from contfab.params import default_params
+from contfab.params import default_params, default_params_digest
 from contfab.tradeoff.study import Clock, Study
 
 CASE_DEFAULT = {"element": "P3", "level": 1, "dt_max": 0.05}
@@ -69,7 +69,7 @@ def _study(factor: str, fast: bool) -> Study:
         points=tuple({"element": e, "level": lv, "dt_max": dt} for e, lv, dt in grid),
         run_point=run_point, evaluate=evaluate, default=CASE_DEFAULT, quantities=(factor,),
         cost_unit="CPU s per analysis", error_meaning=f"|{factor} / exact - 1|",
-        settings={"factor": factor})
+        settings={"factor": factor, "parameters": default_params_digest()})
 
 
 def footing_nq_study(fast: bool) -> Study:

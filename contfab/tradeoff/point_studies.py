@@ -28,7 +28,7 @@ import functools
 import numpy as np
 
 from contfab import material_point as mp
-from contfab.params import default_params
+from contfab.params import default_params, default_params_digest
 from contfab.tradeoff.study import Clock, Study
 
 QUANTITIES = ("RP", "eps_v", "fabric")
@@ -136,7 +136,7 @@ def increment_study(fast: bool) -> Study:
         evaluate=evaluate_increment, default={"increment": mp.DEFAULT_INCREMENT},
         quantities=QUANTITIES, cost_unit="CPU µs per increment",
         error_meaning="max deviation from the Richardson-extrapolated curve",
-        settings={"path": "simple_shear_reversal"})
+        settings={"path": "simple_shear_reversal", "parameters": default_params_digest()})
 
 
 def lambda_study(fast: bool) -> Study:
@@ -151,7 +151,7 @@ def lambda_study(fast: bool) -> Study:
         default={"lam": default_params().regularization.lam},
         quantities=QUANTITIES, cost_unit="CPU µs per increment",
         error_meaning="max deviation from the λ→∞ extrapolated curve",
-        settings={"path": "simple_shear_reversal"})
+        settings={"path": "simple_shear_reversal", "parameters": default_params_digest()})
 
 
 def planes_study(fast: bool) -> Study:
@@ -168,4 +168,4 @@ def planes_study(fast: bool) -> Study:
         default={"sharpness": d.sharpness, "n_search": d.n_search},
         quantities=QUANTITIES, cost_unit="CPU µs per increment",
         error_meaning="max deviation from the sharpest, finest run",
-        settings={"path": "simple_shear_reversal"})
+        settings={"path": "simple_shear_reversal", "parameters": default_params_digest()})
