@@ -19,6 +19,19 @@ def test_pareto_front_keeps_only_undominated_rows():
     assert pareto_front(rows) == [True, True, False, True, True, True]
 
 
+def test_the_default_setting_is_judged_against_the_front():
+    from types import SimpleNamespace
+
+    from contfab.tradeoff.report import default_verdict
+
+    rows = [dict(_row(t, e), knobs={"k": k}) for k, t, e in ((1, 1.0, 1.0), (2, 2.0, 0.5),
+                                                              (3, 3.0, 0.6))]
+    study = lambda k: SimpleNamespace(knobs=("k",), default={"k": k})   # noqa: E731
+    assert default_verdict(study(2), rows) == "on the Pareto front"
+    assert default_verdict(study(3), rows).startswith("off the front, beaten by 2 ")
+    assert default_verdict(study(9), rows) == "not among these settings"
+
+
 def test_point_key_is_stable_and_distinguishes_points():
     assert point_key({"a": 1.0, "b": 2}) == point_key({"b": 2, "a": 1.0})
     assert point_key({"a": 1.0}) != point_key({"a": 1.0000001})

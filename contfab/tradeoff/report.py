@@ -4,7 +4,8 @@
 error, the combined error (the largest), ``pareto`` (1 on the front) and ``default``.
 ``DIR/NAME.png``: combined error against CPU time, log-log, every row as a dot, the
 Pareto front as a line, the default setting as a star.
-``DIR/NAME.md``: what the study measures, its table and its notes.
+``DIR/NAME.md``: what the study measures, its table, where the default setting sits
+(on the front, beaten by which settings, or not run) and its notes.
 """
 from __future__ import annotations
 
@@ -79,12 +80,27 @@ def markdown(study: Study, rows: list[dict], notes: dict, png_name: str | None =
         nums = [_fmt(v) for v in row[len(study.knobs):-2]]
         mark = ("✓" if row[-2] else "") + (" ★" if row[-1] else "")
         lines.append("| " + " | ".join(knob_vals + nums + [mark.strip()]) + " |")
-    lines.append("")
+    lines += ["", f"- default setting {json.dumps(study.default)}: {default_verdict(study, rows)}"]
     for k, v in notes.items():
         lines.append(f"- {k}: {_fmt(v) if not isinstance(v, (dict, list)) else json.dumps(v)}")
     if png_name:
         lines += ["", f"![{study.name}]({png_name})"]
     return "\n".join(lines) + "\n"
+
+
+def default_verdict(study: Study, rows: list[dict]) -> str:
+    """Where the default setting sits: on the front, beaten (by which rows), or not run."""
+    front = pareto_front(rows)
+    mine = [i for i, r in enumerate(rows) if is_default(study, r)]
+    if not mine:
+        return "not among these settings"
+    i = mine[0]
+    if front[i]:
+        return "on the Pareto front"
+    t, e = rows[i]["cpu_s"], combined_error(rows[i])
+    better = [_label(study, r) for j, r in enumerate(rows) if j != i
+              and r["cpu_s"] <= t and combined_error(r) <= e]
+    return f"off the front, beaten by {', '.join(better)} (cheaper and at least as accurate)"
 
 
 def _fmt(v) -> str:
