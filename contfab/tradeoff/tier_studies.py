@@ -13,8 +13,9 @@ Two studies: ``tier_biaxial`` (monotonic: biaxial compression; tiers 0, 1, 2) an
 ``tier_reversal`` (simple shear with reversal; tiers 0 and 1 only: tier 2 started from the
 DEM's anisotropic start fabric did not finish this path in 200 s of CPU at Δτ = 4e-3, dense
 or loose, while it runs it in about a second from an isotropic start — a model issue to
-solve before tier 2 joins this study); their errors are the measured bounds
-:mod:`contfab.tradeoff.auto_tier` chooses a tier from.
+solve before tier 2 joins this study). Their DEM reference is small (``--fast``: N = 100,
+one seed); the bounds :mod:`contfab.tradeoff.auto_tier` chooses from come from the
+calibration campaign instead (N = 1000, 3 seeds).
 """
 from __future__ import annotations
 

@@ -1,0 +1,93 @@
+"""``tier = "auto"`` in a boundary-value problem: per point, the cheapest model that meets a
+tolerance, from the measured bounds and the indicators of the run.
+
+    result, report = run_auto(solve, params, tolerance)
+
+``solve(params, point_tiers) -> dict`` is a case's analysis with the model given per
+quadrature point (an int: one tier everywhere; an array: mixed tiers,
+:class:`contfab.fem.material.TierMaterial` ``point_tiers``); its dict holds at least
+``indicators`` (the run's :class:`contfab.indicators.Tracker`), ``point_updates``
+({tier: point updates}) and ``wall_s``.
+
+**Passes.** Every point starts with the model chosen for monotonic loading
+(:func:`contfab.tradeoff.auto_tier.choose`). After a run, the points whose indicators put
+them in the reversal class get the model chosen for that class where it is a higher tier
+than theirs (``mode`` "mixed"), or every point does as soon as one asks (``mode``
+"uniform": one tier in the mesh). If a point changed, the analysis runs again from the
+start: a tier-2 point integrates its fabric from the initial state, which a tier-1 history
+does not hold. A monotonic scene costs one run of the cheap tier; a scene with a reversal,
+a pilot run and the final one (up to ``max_passes`` runs; the report says whether the
+choice settled, i.e. the last run's points all had their class's model).
+
+Parameters: the case's ``params`` with the ``[tier2]`` section of the reversal class's
+model (:func:`~contfab.tradeoff.auto_tier.params_for`; both files share the tier-0/1
+sections, so the bounds of both classes apply to one parameter set).
+"""
+from __future__ import annotations
+
+from dataclasses import asdict
+from typing import Callable
+
+import numpy as np
+
+from contfab.params import ParamError, Params
+from contfab.tradeoff.auto_tier import AutoTierError, choose, params_for
+
+MODES = ("mixed", "uniform")
+
+
+def run_auto(solve: Callable[[Params, object], dict], params: Params, tolerance: float,
+             mode: str = "mixed", max_passes: int = 3, table=None) -> tuple[dict, dict]:
+    """(the last run's dict, the report of the choice); see the module doc."""
+    if mode not in MODES:
+        raise ParamError(f"auto-tier mode = {mode!r}; accepted: {', '.join(MODES)}")
+    if not 1 <= max_passes <= 10:
+        raise ParamError(f"max_passes = {max_passes} is outside the accepted range [1, 10]")
+    mono, rev = (choose(k, tolerance, table) for k in ("monotonic", "reversal"))
+    if mono.tier == rev.tier == 2 and mono.params_file != rev.params_file:
+        raise AutoTierError(f"at tolerance {tolerance:g} monotonic loading needs {mono.model} and "
+                            f"reversal {rev.model}: two [tier2] sections, one mesh carries one")
+    run_params = params_for(params, rev if rev.tier >= mono.tier else mono)
+    tiers: int | np.ndarray = mono.tier
+    passes, settled = [], False
+    for _ in range(max_passes):
+        result = solve(run_params, tiers)
+        tracker = result["indicators"]
+        flagged = tracker.reversal_class()
+        current = np.broadcast_to(np.asarray(tiers), flagged.shape)
+        wanted = np.where(flagged, max(rev.tier, mono.tier), mono.tier)
+        if mode == "uniform" and flagged.any():
+            wanted = np.full(flagged.shape, max(rev.tier, mono.tier))
+        passes.append(_pass_summary(current, flagged, result))
+        if np.all(wanted <= current):
+            settled = True
+            break
+        new = np.maximum(current, wanted)
+        tiers = int(new[0]) if np.all(new == new[0]) else new
+    report = {"tier": "auto", "tolerance": tolerance, "mode": mode, "settled": settled,
+              "choice": _choice_text(current, mono, rev),
+              "monotonic": asdict(mono), "reversal": asdict(rev),
+              "indicators": {"monotonic_points": asdict(tracker.worst(~flagged)),
+                             "reversal_points": asdict(tracker.worst(flagged)),
+                             "reversal_share": float(flagged.mean())},
+              "passes": passes}
+    return result, report
+
+
+def _pass_summary(current: np.ndarray, flagged: np.ndarray, result: dict) -> dict:
+    n = len(current)
+    return {"points": n, "points_per_tier": {int(t): int(np.sum(current == t))
+                                             for t in np.unique(current)},
+            "reversal_points": int(flagged.sum()), "wall_s": result["wall_s"],
+            "point_updates": {int(k): int(v) for k, v in result["point_updates"].items()}}
+
+
+def _choice_text(current: np.ndarray, mono, rev) -> str:
+    n = len(current)
+    high = int(np.sum(current > mono.tier))
+    if high == 0:
+        return f"{mono.model} at all {n} points (none in the reversal class): {mono.reason}"
+    if high == n:
+        return f"{rev.model} at all {n} points: {rev.reason}"
+    return (f"{rev.model} at {high} of {n} points ({100 * high / n:.1f} %, the reversal class: "
+            f"{rev.reason}), {mono.model} elsewhere ({mono.reason})")
