@@ -16,8 +16,10 @@ than theirs (``mode`` "mixed"), or every point does as soon as one asks (``mode`
 "uniform": one tier in the mesh). If a point changed, the analysis runs again from the
 start: a tier-2 point integrates its fabric from the initial state, which a tier-1 history
 does not hold. A monotonic scene costs one run of the cheap tier; a scene with a reversal,
-a pilot run and the final one (up to ``max_passes`` runs; the report says whether the
-choice settled, i.e. the last run's points all had their class's model).
+the tier-1 pilot and the final run (``max_passes`` = 2, the default). The choice has
+settled when the last run's flagged points all had their class's model; where the
+reversal zone moves with the model (a shear band), it need not, and the report counts the
+points the last run flagged but ran with the cheaper model (``unsettled_points``).
 
 Parameters: the case's ``params`` with the ``[tier2]`` section of the reversal class's
 model (:func:`~contfab.tradeoff.auto_tier.params_for`; both files share the tier-0/1
@@ -37,7 +39,7 @@ MODES = ("mixed", "uniform")
 
 
 def run_auto(solve: Callable[[Params, object], dict], params: Params, tolerance: float,
-             mode: str = "mixed", max_passes: int = 3, table=None) -> tuple[dict, dict]:
+             mode: str = "mixed", max_passes: int = 2, table=None) -> tuple[dict, dict]:
     """(the last run's dict, the report of the choice); see the module doc."""
     if mode not in MODES:
         raise ParamError(f"auto-tier mode = {mode!r}; accepted: {', '.join(MODES)}")
@@ -59,12 +61,15 @@ def run_auto(solve: Callable[[Params, object], dict], params: Params, tolerance:
         if mode == "uniform" and flagged.any():
             wanted = np.full(flagged.shape, max(rev.tier, mono.tier))
         passes.append(_pass_summary(current, flagged, result))
-        if np.all(wanted <= current):
+        unsettled = int(np.sum(wanted > current))
+        if unsettled == 0:
             settled = True
             break
         new = np.maximum(current, wanted)
         tiers = int(new[0]) if np.all(new == new[0]) else new
     report = {"tier": "auto", "tolerance": tolerance, "mode": mode, "settled": settled,
+              "unsettled_points": unsettled,
+              "wall_s": float(sum(p["wall_s"] for p in passes)),
               "choice": _choice_text(current, mono, rev),
               "monotonic": asdict(mono), "reversal": asdict(rev),
               "indicators": {"monotonic_points": asdict(tracker.worst(~flagged)),
