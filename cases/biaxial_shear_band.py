@@ -42,6 +42,7 @@ from contfab.fem.assembly import Discretization  # noqa: E402
 from contfab.fem.auto import run_auto  # noqa: E402
 from contfab.tradeoff.auto_tier import Choice, params_for  # noqa: E402
 from contfab.fem.elements import ELEMENTS  # noqa: E402
+from contfab.fem.output import plot_field  # noqa: E402
 from contfab.fem.material import TierMaterial  # noqa: E402
 from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver, Stage  # noqa: E402
 from contfab.material_point import run_path  # noqa: E402
@@ -131,12 +132,22 @@ def solve(params, element: str, level: int, dense: float, strain: float, out: Pa
                 "stress_ratio": sigma1 / p0,
                 "sin_phi_mob": (sigma1 - p0) / (sigma1 + p0)}
 
-    name = f"biaxial_shear_band_{element}_L{level}"
+    name = f"biaxial_shear_band_{element}_L{level}" + (
+        "_mixed" if mixed else "" if tier == 1 else f"_tier{tier}")
     outputs = analysis.Outputs(out, name, frame_every=10, curve_axes=("axial_strain", "stress_ratio"))
     gp_marks = []
     t0 = time.perf_counter()
     result = analysis.run(solver, [stage], _recording(measure, gp_marks), outputs,
                           progress=progress)
+    if out is not None:
+        result.files.append(plot_field(
+            Path(out) / f"{name}_reversal_class.png", disc,
+            disc.element_mean(result.indicators.reversal_class().astype(float)),
+            "share of points in the reversal class", f"{name}: axes rotation > 15° or reversal"))
+        if mixed:
+            result.files.append(plot_field(Path(out) / f"{name}_tiers.png", disc,
+                                           disc.element_mean(np.asarray(tier, float)),
+                                           "model tier (element mean)", f"{name}: tiers carried"))
     ratio = result.column("stress_ratio")
     t = result.column("t")
     gp = [g for tt, g in gp_marks if tt >= 0.9 * t[-1]]

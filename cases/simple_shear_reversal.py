@@ -204,7 +204,8 @@ def run(args) -> CaseResult:
         auto = None
         if tier == "auto":
             r, auto = run_auto(lambda p, t: solve(p, t, args.element, args.nx, args.ny,
-                                                  args.dgamma, args.out, not args.quiet, "auto"),
+                                                  args.dgamma, args.out, not args.quiet,
+                                                  f"auto_{'mixed' if np.ndim(t) else f'tier{t}'}"),
                                params, args.tolerance)
         else:
             tier = int(tier)

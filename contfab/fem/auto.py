@@ -40,7 +40,8 @@ MODES = ("mixed", "uniform")
 
 def run_auto(solve: Callable[[Params, object], dict], params: Params, tolerance: float,
              mode: str = "mixed", max_passes: int = 2, table=None) -> tuple[dict, dict]:
-    """(the last run's dict, the report of the choice); see the module doc."""
+    """(the last run's dict, its ``files`` those of every pass, and the report of the
+    choice); see the module doc."""
     if mode not in MODES:
         raise ParamError(f"auto-tier mode = {mode!r}; accepted: {', '.join(MODES)}")
     if not 1 <= max_passes <= 10:
@@ -51,9 +52,10 @@ def run_auto(solve: Callable[[Params, object], dict], params: Params, tolerance:
                             f"reversal {rev.model}: two [tier2] sections, one mesh carries one")
     run_params = params_for(params, rev if rev.tier >= mono.tier else mono)
     tiers: int | np.ndarray = mono.tier
-    passes, settled = [], False
+    passes, settled, files = [], False, []
     for _ in range(max_passes):
         result = solve(run_params, tiers)
+        files += result.get("files", [])
         tracker = result["indicators"]
         flagged = tracker.reversal_class()
         current = np.broadcast_to(np.asarray(tiers), flagged.shape)
@@ -76,7 +78,7 @@ def run_auto(solve: Callable[[Params, object], dict], params: Params, tolerance:
                              "reversal_points": asdict(tracker.worst(flagged)),
                              "reversal_share": float(flagged.mean())},
               "passes": passes}
-    return result, report
+    return {**result, "files": files}, report
 
 
 def _pass_summary(current: np.ndarray, flagged: np.ndarray, result: dict) -> dict:
