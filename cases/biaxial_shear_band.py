@@ -257,7 +257,7 @@ def run(args) -> CaseResult:
         r, auto = run_auto(lambda p, t: solve(p, args.element, args.level, args.dense,
                                               args.strain, args.out, not args.quiet, tier=t,
                                               homogeneous=args.homogeneous),
-                           params, args.tolerance)
+                           params, args.tolerance, min_tier=1)
     else:
         r = solve(params, args.element, args.level, args.dense, args.strain, args.out,
                   not args.quiet, tier=int(args.tier), homogeneous=args.homogeneous)

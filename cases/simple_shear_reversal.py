@@ -206,7 +206,7 @@ def run(args) -> CaseResult:
             r, auto = run_auto(lambda p, t: solve(p, t, args.element, args.nx, args.ny,
                                                   args.dgamma, args.out, not args.quiet,
                                                   f"auto_{'mixed' if np.ndim(t) else f'tier{t}'}"),
-                               params, args.tolerance)
+                               params, args.tolerance, min_tier=1)
         else:
             tier = int(tier)
             r = solve(params, tier, args.element, args.nx, args.ny, args.dgamma, args.out,

@@ -70,6 +70,42 @@ def test_the_shipped_bounds_choose_tier1_for_monotonic_and_tier2_for_reversal():
     assert not tight.met and "no model meets 0.05" in tight.reason and tight.model == "tier 2 balance"
     with pytest.raises(AutoTierError, match=r"tolerance = -1 out of range; accepted \(0, inf\)"):
         choose("monotonic", -1, table)
+    # a case that needs c (min_tier 1): a loose tolerance gives tier 1, not tier 0
+    assert choose("monotonic", 0.2, table).tier == 0
+    assert choose("monotonic", 0.2, table, min_tier=1).tier == 1
+    assert choose("reversal", 0.115, table, min_tier=1).model == "tier 1"
+
+
+def _fake_solve(flag):
+    """A stand-in for a case's analysis: 4 points, those in ``flag`` with axes rotated by
+    30° (the reversal class); records the tiers it was asked to run."""
+    calls = []
+
+    def solve(params, point_tiers):
+        calls.append((params.tier2.fabric_law, np.broadcast_to(point_tiers, (4,)).tolist()))
+        t = Tracker(np.tile([-1.0, -1.0, 0.0], (4, 1)), c_star=0.81)
+        t.rotation[list(flag)] = np.radians(30.0)
+        return {"indicators": t, "point_updates": {1: 10}, "wall_s": 0.5, "files": []}
+    return solve, calls
+
+
+def test_run_auto_passes_mixed_and_uniform():
+    from contfab.fem.auto import run_auto
+    solve, calls = _fake_solve({0, 1})
+    result, report = run_auto(solve, default_params(), TOL, min_tier=1)
+    # pilot at tier 1 everywhere, then tier 2 (balance law = fabric_law 0) where flagged
+    assert [c[1] for c in calls] == [[1, 1, 1, 1], [2, 2, 1, 1]] and calls[1][0] == 0
+    assert report["settled"] and report["unsettled_points"] == 0 and report["wall_s"] == 1.0
+    assert report["choice"].startswith("tier 2 balance at 2 of 4 points (50.0 %")
+    assert [p["points_per_tier"] for p in report["passes"]] == [{1: 4}, {1: 2, 2: 2}]
+    solve, calls = _fake_solve({3})
+    _, report = run_auto(solve, default_params(), TOL, mode="uniform", min_tier=1)
+    assert [c[1] for c in calls] == [[1, 1, 1, 1], [2, 2, 2, 2]]
+    solve, calls = _fake_solve(set())
+    _, report = run_auto(solve, default_params(), TOL, min_tier=1)
+    assert len(calls) == 1 and report["choice"].startswith("tier 1 at all 4 points (none")
+    with pytest.raises(ParamError, match="auto-tier mode = 'best'; accepted: mixed, uniform"):
+        run_auto(solve, default_params(), TOL, mode="best")
 
 
 def test_mixed_tiers_update_each_point_with_its_own_tier():

@@ -21,6 +21,10 @@ settled when the last run's flagged points all had their class's model; where th
 reversal zone moves with the model (a shear band), it need not, and the report counts the
 points the last run flagged but ran with the cheaper model (``unsettled_points``).
 
+``min_tier``: the lowest tier the case can run (a case measuring c needs tier 1). The
+reversal class's model is chosen among tiers >= the monotonic one, so a flagged point
+never drops below its neighbours' model.
+
 Parameters: the case's ``params`` with the ``[tier2]`` section of the reversal class's
 model (:func:`~contfab.tradeoff.auto_tier.params_for`; both files share the tier-0/1
 sections, so the bounds of both classes apply to one parameter set).
@@ -39,18 +43,20 @@ MODES = ("mixed", "uniform")
 
 
 def run_auto(solve: Callable[[Params, object], dict], params: Params, tolerance: float,
-             mode: str = "mixed", max_passes: int = 2, table=None) -> tuple[dict, dict]:
+             mode: str = "mixed", max_passes: int = 2, table=None, min_tier: int = 0
+             ) -> tuple[dict, dict]:
     """(the last run's dict, its ``files`` those of every pass, and the report of the
     choice); see the module doc."""
     if mode not in MODES:
         raise ParamError(f"auto-tier mode = {mode!r}; accepted: {', '.join(MODES)}")
     if not 1 <= max_passes <= 10:
         raise ParamError(f"max_passes = {max_passes} is outside the accepted range [1, 10]")
-    mono, rev = (choose(k, tolerance, table) for k in ("monotonic", "reversal"))
+    mono = choose("monotonic", tolerance, table, min_tier)
+    rev = choose("reversal", tolerance, table, mono.tier)    # never below the monotonic tier
     if mono.tier == rev.tier == 2 and mono.params_file != rev.params_file:
         raise AutoTierError(f"at tolerance {tolerance:g} monotonic loading needs {mono.model} and "
                             f"reversal {rev.model}: two [tier2] sections, one mesh carries one")
-    run_params = params_for(params, rev if rev.tier >= mono.tier else mono)
+    run_params = params_for(params, rev)
     tiers: int | np.ndarray = mono.tier
     passes, settled, files = [], False, []
     for _ in range(max_passes):
@@ -59,9 +65,9 @@ def run_auto(solve: Callable[[Params, object], dict], params: Params, tolerance:
         tracker = result["indicators"]
         flagged = tracker.reversal_class()
         current = np.broadcast_to(np.asarray(tiers), flagged.shape)
-        wanted = np.where(flagged, max(rev.tier, mono.tier), mono.tier)
+        wanted = np.where(flagged, rev.tier, mono.tier)
         if mode == "uniform" and flagged.any():
-            wanted = np.full(flagged.shape, max(rev.tier, mono.tier))
+            wanted = np.full(flagged.shape, rev.tier)
         passes.append(_pass_summary(current, flagged, result))
         unsettled = int(np.sum(wanted > current))
         if unsettled == 0:
@@ -72,7 +78,7 @@ def run_auto(solve: Callable[[Params, object], dict], params: Params, tolerance:
     report = {"tier": "auto", "tolerance": tolerance, "mode": mode, "settled": settled,
               "unsettled_points": unsettled,
               "wall_s": float(sum(p["wall_s"] for p in passes)),
-              "choice": _choice_text(current, mono, rev),
+              "choice": _choice_text(current, flagged, mono, rev),
               "monotonic": asdict(mono), "reversal": asdict(rev),
               "indicators": {"monotonic_points": asdict(tracker.worst(~flagged)),
                              "reversal_points": asdict(tracker.worst(flagged)),
@@ -89,11 +95,13 @@ def _pass_summary(current: np.ndarray, flagged: np.ndarray, result: dict) -> dic
             "point_updates": {int(k): int(v) for k, v in result["point_updates"].items()}}
 
 
-def _choice_text(current: np.ndarray, mono, rev) -> str:
-    n = len(current)
+def _choice_text(current: np.ndarray, flagged: np.ndarray, mono, rev) -> str:
+    n, k = len(current), int(flagged.sum())
     high = int(np.sum(current > mono.tier))
     if high == 0:
-        return f"{mono.model} at all {n} points (none in the reversal class): {mono.reason}"
+        where = ("none in the reversal class" if k == 0 else
+                 f"{k} in the reversal class, where it is also the choice: {rev.reason}")
+        return f"{mono.model} at all {n} points ({where}): {mono.reason}"
     if high == n:
         return f"{rev.model} at all {n} points: {rev.reason}"
     return (f"{rev.model} at {high} of {n} points ({100 * high / n:.1f} %, the reversal class: "

@@ -79,9 +79,10 @@ def load_table(path: str | Path = TABLE_FILE) -> dict[str, list[dict]]:
 
 
 def choose(ind: Indicators | str, tolerance: float,
-           table: Mapping[str, list[dict]] | None = None) -> Choice:
-    """The cheapest model whose bound for the loading class of ``ind`` (Indicators, or a
-    class name) meets ``tolerance`` (RMS error of R/P against the DEM)."""
+           table: Mapping[str, list[dict]] | None = None, min_tier: int = 0) -> Choice:
+    """The cheapest model of tier >= ``min_tier`` whose bound for the loading class of
+    ``ind`` (Indicators, or a class name) meets ``tolerance`` (RMS error of R/P against
+    the DEM)."""
     if isinstance(tolerance, bool) or not (isinstance(tolerance, (int, float))
                                            and tolerance > 0 and math.isfinite(tolerance)):
         raise AutoTierError(f"tolerance = {tolerance!r} out of range; accepted (0, inf) "
@@ -90,9 +91,10 @@ def choose(ind: Indicators | str, tolerance: float,
     if loading not in CLASSES:
         raise AutoTierError(f"loading class {loading!r} unknown; accepted: {', '.join(CLASSES)}")
     table = load_table() if table is None else table
-    rows = table[loading]
+    rows = [r for r in table[loading] if r["tier"] >= min_tier]
     if not rows:
-        raise AutoTierError(f"the error table has no rows for {loading} loading")
+        raise AutoTierError(f"the error table has no rows of tier >= {min_tier} for {loading} "
+                            f"loading")
     why = f"{loading} loading"
     if not isinstance(ind, str):
         why += (f" (axes rotation {ind.axes_rotation_deg:.1f}°, reversal "
