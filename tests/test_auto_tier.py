@@ -179,3 +179,18 @@ def test_mixed_tiers_in_the_shear_band_match_tier2_everywhere_within_the_toleran
     assert 0.0 < cmp["tier2_updates_share"] < 0.5
     # the tiers differ (else the comparison could not fail): tier 2 peaks higher
     assert cmp["tier2"]["peak"] > cmp["tier1"]["peak"] * 1.01
+
+
+def test_the_shipped_bounds_are_the_calibration_errors(tmp_path):
+    """tier_errors.csv is what table_from_calibration makes of docs/calibration/errors.csv
+    (the errors, bitwise; the costs are a machine's measurement and are passed through)."""
+    from pathlib import Path
+
+    from contfab.tradeoff.auto_tier import table_from_calibration
+    shipped = load_table()
+    costs = {(k, r["model"]): r["cost"] for k, rows in shipped.items() for r in rows}
+    errors = Path(__file__).resolve().parent.parent / "docs" / "calibration" / "errors.csv"
+    rebuilt = load_table(table_from_calibration(errors, costs, tmp_path / "t.csv"))
+    assert rebuilt == shipped
+    assert {r["model"] for r in rebuilt["reversal"]} == {"tier 0", "tier 1", "tier 2 balance",
+                                                         "tier 2 relaxation"}
