@@ -39,9 +39,13 @@ from contfab.cases import CaseResult, Figure, failure_note, main  # noqa: E402
 from contfab.fem import analysis, loads  # noqa: E402
 from contfab.fem import mesh as meshes  # noqa: E402
 from contfab.fem.assembly import Discretization  # noqa: E402
+from contfab.fem.auto import run_auto  # noqa: E402
+from contfab.tradeoff.auto_tier import Choice, params_for  # noqa: E402
 from contfab.fem.elements import ELEMENTS  # noqa: E402
+from contfab.fem.output import plot_field  # noqa: E402
 from contfab.fem.material import TierMaterial  # noqa: E402
 from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver, Stage  # noqa: E402
+from contfab.material_point import run_path  # noqa: E402
 from contfab.models.cone import friction_angles  # noqa: E402
 from contfab.params import ParamError, default_params, load_params  # noqa: E402
 
@@ -74,17 +78,23 @@ def band_angle(disc: Discretization, dgp: np.ndarray) -> float:
 
 
 def solve(params, element: str, level: int, dense: float, strain: float, out: Path | None,
-          progress: bool, lam: float | None = None) -> dict:
-    """One biaxial test; returns the peak, the end state, the band angle and Newton figures."""
+          progress: bool, lam: float | None = None, tier=1, homogeneous: bool = False) -> dict:
+    """One biaxial test with model ``tier`` (default 1; an array: a tier per quadrature
+    point); returns the peak, the end state, the band angle and Newton figures.
+    ``homogeneous``: smooth platens and no imperfection (the field stays homogeneous: the
+    material point's biaxial path; no band, angle NaN)."""
     if not 1 <= level <= 6:
         raise ParamError(f"mesh level = {level} is outside the accepted range [1, 6]")
-    if not 0.0 < dense <= 0.08:
-        raise ParamError(f"dense = {dense:g} (c0 - c*) is outside the accepted range (0, 0.08]")
+    low = -0.05 if homogeneous else 0.0       # a loose specimen hardens: no band to trigger
+    if not low < dense <= 0.08:
+        raise ParamError(f"dense = {dense:g} (c0 - c*) is outside the accepted range "
+                         f"({low:g}, 0.08]")
     if not 0.0 < strain <= 0.2:
         raise ParamError(f"strain = {strain:g} is outside the accepted range (0, 0.2]")
     p0 = 1.0
     c_star = params.tier1.c_star
-    params = params.with_tier(1).replace("regularization", p_ref=p0) \
+    mixed = np.ndim(tier) > 0
+    params = params.with_tier(int(np.max(tier))).replace("regularization", p_ref=p0) \
         .replace("initial", c0=c_star + dense)
     if lam is not None:
         params = params.replace("regularization", lam=lam)
@@ -95,18 +105,22 @@ def solve(params, element: str, level: int, dense: float, strain: float, out: Pa
         mesh = meshes.tensor(np.linspace(0, WIDTH, 8 * level + 1),
                              np.linspace(0, HEIGHT, 20 * level + 1), kind="quad")
     disc = Discretization(mesh, element)
-    material = TierMaterial(params, tier=1)
+    material = TierMaterial(params, point_tiers=tier) if mixed else TierMaterial(params, tier=tier)
     n = disc.npoints
     state0 = material.initial_state(n)
     x, y = disc.points.T
     spot = np.hypot(x - SPOT[0], y - SPOT[1]) < SPOT[2]
-    state0[spot, 1] -= SPOT[3]
+    if not homogeneous:
+        state0[spot, 1] -= SPOT[3]
     stress0 = np.column_stack((-p0 * np.ones(n), -p0 * np.ones(n), np.zeros(n)))
     solver = Solver(disc, material, stress0, state0, NewtonOptions())
     top = loads.boundary_dofs(disc, "top", "y")
-    fixed = np.unique(np.concatenate([loads.boundary_dofs(disc, "bottom", "x"),
-                                      loads.boundary_dofs(disc, "bottom", "y"),
-                                      loads.boundary_dofs(disc, "top", "x"), top]))
+    if homogeneous:   # smooth platens: ux free but at one bottom node (the rigid-body mode)
+        held = loads.boundary_dofs(disc, "bottom", "x")[:1]
+    else:             # rough platens
+        held = np.concatenate([loads.boundary_dofs(disc, "bottom", "x"),
+                               loads.boundary_dofs(disc, "top", "x")])
+    fixed = np.unique(np.concatenate([held, loads.boundary_dofs(disc, "bottom", "y"), top]))
     f_dead = loads.surface_load(disc, "left", pressure=p0) + \
         loads.surface_load(disc, "right", pressure=p0)
     stage = Stage("compress", fixed, np.where(np.isin(fixed, top), -strain * HEIGHT, 0.0),
@@ -118,12 +132,22 @@ def solve(params, element: str, level: int, dense: float, strain: float, out: Pa
                 "stress_ratio": sigma1 / p0,
                 "sin_phi_mob": (sigma1 - p0) / (sigma1 + p0)}
 
-    name = f"biaxial_shear_band_{element}_L{level}"
+    name = f"biaxial_shear_band_{element}_L{level}" + (
+        "_mixed" if mixed else "" if tier == 1 else f"_tier{tier}")
     outputs = analysis.Outputs(out, name, frame_every=10, curve_axes=("axial_strain", "stress_ratio"))
     gp_marks = []
     t0 = time.perf_counter()
     result = analysis.run(solver, [stage], _recording(measure, gp_marks), outputs,
                           progress=progress)
+    if out is not None:
+        result.files.append(plot_field(
+            Path(out) / f"{name}_reversal_class.png", disc,
+            disc.element_mean(result.indicators.reversal_class().astype(float)),
+            "share of points in the reversal class", f"{name}: axes rotation > 15° or reversal"))
+        if mixed:
+            result.files.append(plot_field(Path(out) / f"{name}_tiers.png", disc,
+                                           disc.element_mean(np.asarray(tier, float)),
+                                           "model tier (element mean)", f"{name}: tiers carried"))
     ratio = result.column("stress_ratio")
     t = result.column("t")
     gp = [g for tt, g in gp_marks if tt >= 0.9 * t[-1]]
@@ -131,11 +155,14 @@ def solve(params, element: str, level: int, dense: float, strain: float, out: Pa
     c0 = c_star + dense
     phi, psi, _, _ = friction_angles(c0, *(params.array(1)[2:]))
     return {"peak": float(ratio.max()), "peak_strain": float(result.column("axial_strain")[np.argmax(ratio)]),
-            "end": float(ratio[-1]), "angle": band_angle(disc, dgp),
+            "end": float(ratio[-1]), "angle": math.nan if homogeneous else band_angle(disc, dgp),
+            "curve": {k: result.column(k) for k in ("axial_strain", "stress_ratio", "sin_phi_mob")},
+            "params": params,
             "phi0": math.degrees(phi), "psi0": math.degrees(psi), "dofs": disc.ndofs,
             "wall_s": time.perf_counter() - t0, "steps": len(result.iterations),
             "median_newton": float(np.median(result.iterations)),
-            "band_c_min": float(solver.committed.state[:, 1].min()), "files": result.files}
+            "band_c_min": float(solver.committed.state[:, 1].min()), "files": result.files,
+            "indicators": result.indicators, "point_updates": dict(material.point_updates)}
 
 
 def _recording(measure, marks):
@@ -150,11 +177,67 @@ def add_arguments(p) -> None:
     p.add_argument("--element", choices=sorted(ELEMENTS), default="P2",
                    help="element family (default P2: the element study's choice)")
     p.add_argument("--level", type=int, default=2, help="mesh density level, 1..6")
-    p.add_argument("--dense", type=float, default=0.03, help="c0 - c* (default 0.03)")
+    p.add_argument("--dense", type=float, default=0.03,
+                   help="c0 - c* (default 0.03; > 0, or > -0.05 with --homogeneous)")
     p.add_argument("--strain", type=float, default=0.04, help="final axial strain (default 0.04)")
     p.add_argument("--params", default=None, help="parameter file (default: the shipped one)")
+    p.add_argument("--homogeneous", action="store_true",
+                   help="smooth platens, no imperfection: the homogeneous biaxial, against the "
+                        "material-point driver on the same path (no band)")
+    p.add_argument("--tier", choices=("1", "2", "auto"), default="1",
+                   help="model tier (default 1); auto: the cheapest model per point whose "
+                        "measured bound meets --tolerance (contfab.fem.auto)")
+    p.add_argument("--tolerance", type=float, default=0.11,
+                   help="auto: tolerated RMS error of R/P against the DEM (default 0.11)")
+    p.add_argument("--compare", action="store_true",
+                   help="with --tier auto: also run every point at tier 2 (the reversal class's "
+                        "model) and at tier 1, and report the differences and the saving")
     p.add_argument("--study", action="store_true",
                    help="also mesh levels 1..3 (post-peak mesh dependence) and 10 lambda")
+
+
+def _homogeneous_result(r: dict, auto: dict | None, args) -> CaseResult:
+    """Peak and end σ1/σ3 of the homogeneous specimen against the material-point driver on
+    the biaxial path (tier 1, the same parameters and start; steps of 1e-3 in strain)."""
+    point = run_path("biaxial", r["params"], tier=1, increment=1e-3)
+    eps, ratio = -point["eps_yy"], point["syy"] / point["sxx"]
+    keep = eps <= args.strain * (1 + 1e-9)
+    end = float(np.interp(r["curve"]["axial_strain"][-1], eps, ratio))
+    figures = [Figure("peak sigma1/sigma3 vs the material point", r["peak"],
+                      float(ratio[keep].max()), "material-point driver, biaxial path"),
+               Figure("end sigma1/sigma3 vs the material point", r["end"], end,
+                      "material-point driver, biaxial path")]
+    notes = {k: r[k] for k in ("peak", "peak_strain", "end", "dofs", "wall_s", "steps",
+                               "median_newton")}
+    if auto is not None:
+        notes["auto"] = auto
+    return CaseResult(figures, notes, r["files"])
+
+
+def compare_uniform(r: dict, auto: dict, params, args) -> dict:
+    """The auto run ``r`` against every point at tier 2 (the reversal class's model, the
+    reference) and at tier 1: RMS and largest difference of R/P = sin φ_mob over the
+    auto run's strain grid, peak and end σ1/σ3, wall time and point updates."""
+    p2 = params_for(params, Choice(**auto["reversal"]))
+    runs = {t: solve(p2, args.element, args.level, args.dense, args.strain, None, False, tier=t,
+                     homogeneous=args.homogeneous) for t in (2, 1)}
+    ref = runs[2]["curve"]
+
+    def diff(run: dict) -> np.ndarray:
+        x = run["curve"]["axial_strain"]
+        return np.interp(x, ref["axial_strain"], ref["sin_phi_mob"]) - run["curve"]["sin_phi_mob"]
+
+    out = {}
+    for name, run in (("auto", r), ("tier1", runs[1]), ("tier2", runs[2])):
+        d = diff(run)
+        out[name] = {"rms_RP_diff_vs_tier2": float(np.sqrt(np.mean(d**2))),
+                     "max_RP_diff_vs_tier2": float(np.max(np.abs(d))), "peak": run["peak"],
+                     "end": run["end"], "wall_s": run["wall_s"],
+                     "point_updates": {int(k): int(v) for k, v in run["point_updates"].items()}}
+    out["auto"]["wall_s_all_passes"] = auto["wall_s"]
+    out["tier2_updates_share"] = (out["auto"]["point_updates"].get(2, 0)
+                                  / out["tier2"]["point_updates"][2])
+    return out
 
 
 STUDY_KEYS = ("dofs", "peak", "peak_strain", "end", "angle", "steps", "median_newton", "wall_s")
@@ -167,7 +250,19 @@ def run(args) -> CaseResult:
         # level 1 (1394 DOFs, 8 elements across) the band sits at 47 deg against Roscoe's
         # 53.7 with the calibrated parameters: too coarse to resolve it (level 2: 53.5)
         args.element, args.level = "P2", 2
-    r = solve(params, args.element, args.level, args.dense, args.strain, args.out, not args.quiet)
+    if args.compare and args.tier != "auto":
+        raise ParamError(f"--compare needs --tier auto (got --tier {args.tier})")
+    auto = None
+    if args.tier == "auto":
+        r, auto = run_auto(lambda p, t: solve(p, args.element, args.level, args.dense,
+                                              args.strain, args.out, not args.quiet, tier=t,
+                                              homogeneous=args.homogeneous),
+                           params, args.tolerance, min_tier=1)
+    else:
+        r = solve(params, args.element, args.level, args.dense, args.strain, args.out,
+                  not args.quiet, tier=int(args.tier), homogeneous=args.homogeneous)
+    if args.homogeneous:
+        return _homogeneous_result(r, auto, args)
     coulomb = 45 + r["phi0"] / 2
     roscoe = 45 + r["psi0"] / 2
     arthur = 45 + (r["phi0"] + r["psi0"]) / 4
@@ -178,6 +273,10 @@ def run(args) -> CaseResult:
     notes = {k: r[k] for k in ("peak", "peak_strain", "end", "phi0", "psi0", "band_c_min",
                                "dofs", "wall_s", "steps", "median_newton")}
     notes["softening"] = r["end"] / r["peak"] - 1.0
+    if auto is not None:
+        notes["auto"] = auto
+        if args.compare:
+            notes["auto_vs_uniform"] = compare_uniform(r, auto, params, args)
     if args.study:
         lam = params.regularization.lam
         t0 = time.perf_counter()

@@ -60,6 +60,7 @@ from contfab.cases import CaseResult, Figure, main  # noqa: E402
 from contfab.fem import analysis, loads  # noqa: E402
 from contfab.fem import mesh as meshes  # noqa: E402
 from contfab.fem.assembly import Discretization  # noqa: E402
+from contfab.fem.auto import run_auto  # noqa: E402
 from contfab.fem.elements import ELEMENTS  # noqa: E402
 from contfab.fem.material import TierMaterial  # noqa: E402
 from contfab.fem.solver import NewtonOptions, Solver, Stage  # noqa: E402
@@ -115,14 +116,16 @@ def homogeneous_kinematics(disc: Discretization):
     return fixed, loc_y[fixed], ties, loc_y[followers] / loc_y[leader]
 
 
-def solve(params, tier: int, element: str, nx: int, ny: int, dgamma: float,
-          out: Path | None, progress: bool) -> dict:
-    """The layer along the path with model tier ``tier``; γ steps of at most ``dgamma``."""
+def solve(params, tier, element: str, nx: int, ny: int, dgamma: float,
+          out: Path | None, progress: bool, label: str | None = None) -> dict:
+    """The layer along the path with model tier ``tier`` (an int, or a tier per quadrature
+    point: mixed tiers); γ steps of at most ``dgamma``."""
     if not 0 < dgamma <= 0.1:
         raise ParamError(f"dgamma = {dgamma:g} is outside the accepted range (0, 0.1]")
     p0 = params.regularization.p_ref
     disc = Discretization(layer_mesh(element, nx, ny), element)
-    material = TierMaterial(params, tier=tier)
+    mixed = np.ndim(tier) > 0
+    material = TierMaterial(params, point_tiers=tier) if mixed else TierMaterial(params, tier=tier)
     n = disc.npoints
     stress0 = np.zeros((n, 3))
     stress0[:, :2] = -p0
@@ -154,7 +157,8 @@ def solve(params, tier: int, element: str, nx: int, ny: int, dgamma: float,
             row["B"], row["theta_p"] = float(b), math.degrees(theta)
         return row
 
-    outputs = analysis.Outputs(out, f"simple_shear_reversal_tier{tier}", frame_every=20,
+    name = f"simple_shear_reversal_{label or f'tier{tier}'}"
+    outputs = analysis.Outputs(out, name, frame_every=20,
                                curve_axes=("gamma", "ratio"))
     t0 = time.perf_counter()
     start = measure(solver)                              # τ = 0: the initial state
@@ -162,7 +166,8 @@ def solve(params, tier: int, element: str, nx: int, ny: int, dgamma: float,
     curve = {k: np.insert(result.column(k), 0, start[k]) for k in start}
     return {"curve": curve, "wall_s": time.perf_counter() - t0, "dofs": disc.ndofs,
             "steps": len(result.iterations), "median_newton": float(np.median(result.iterations)),
-            "files": result.files}
+            "files": result.files, "indicators": result.indicators,
+            "point_updates": dict(material.point_updates)}
 
 
 def at_tau(curve: dict, key: str, tau: float) -> float:
@@ -171,8 +176,11 @@ def at_tau(curve: dict, key: str, tau: float) -> float:
 
 
 def add_arguments(p) -> None:
-    p.add_argument("--tiers", type=int, nargs="+", default=[1, 2], choices=(1, 2),
-                   help="model tiers to run (default 1 and 2)")
+    p.add_argument("--tiers", nargs="+", default=["1", "2"], choices=("1", "2", "auto"),
+                   help="model tiers to run (default 1 and 2); auto: the cheapest model per "
+                        "point whose measured bound meets --tolerance (contfab.fem.auto)")
+    p.add_argument("--tolerance", type=float, default=0.11,
+                   help="auto: tolerated RMS error of R/P against the DEM (default 0.11)")
     p.add_argument("--element", choices=sorted(ELEMENTS), default="P2")
     p.add_argument("--nx", type=int, default=2, help="elements across the layer (default 2)")
     p.add_argument("--ny", type=int, default=2, help="elements through the layer (default 2)")
@@ -193,22 +201,33 @@ def run(args) -> CaseResult:
     figures, notes, files, table = [], {}, [], {"tau": dem["tau"], "gamma": dem["gamma"],
                                                  "dem_ratio": dem["ratio"]}
     for tier in args.tiers:
-        r = solve(params, tier, args.element, args.nx, args.ny, args.dgamma, args.out,
-                  not args.quiet)
+        auto = None
+        if tier == "auto":
+            r, auto = run_auto(lambda p, t: solve(p, t, args.element, args.nx, args.ny,
+                                                  args.dgamma, args.out, not args.quiet,
+                                                  f"auto_{'mixed' if np.ndim(t) else f'tier{t}'}"),
+                               params, args.tolerance, min_tier=1)
+        else:
+            tier = int(tier)
+            r = solve(params, tier, args.element, args.nx, args.ny, args.dgamma, args.out,
+                      not args.quiet)
         curve = r["curve"]
+        key = "auto" if auto is not None else f"tier{tier}"
         for label, tau in (("+1", tau_fwd), ("-1", tau_end)):   # the DEM's stage ends
-            figures.append(Figure(f"tau/sigma_n at gamma = {label} (tier {tier})",
+            figures.append(Figure(f"tau/sigma_n at gamma = {label} ({key})",
                                   at_tau(curve, "ratio", tau), at_tau(dem, "ratio", tau),
                                   "DEM, N = 1000"))
         fe_on_dem = np.interp(dem["tau"], curve["tau"], curve["ratio"])
-        table[f"tier{tier}_ratio"] = fe_on_dem
+        table[f"{key}_ratio"] = fe_on_dem
         note = {"rms_ratio_diff_vs_dem": float(np.sqrt(np.mean((fe_on_dem - dem["ratio"])**2))),
                 "eps_v_at_gamma_1": at_tau(curve, "eps_v", tau_fwd),
                 "dem_eps_v_at_gamma_1": at_tau(dem, "eps_v", tau_fwd),
                 "c_at_end": at_tau(curve, "c", tau_end), "dem_c_at_end": at_tau(dem, "c", tau_end),
                 "dofs": r["dofs"], "steps": r["steps"], "median_newton": r["median_newton"],
                 "wall_s": r["wall_s"]}
-        if tier == 2:
+        if auto is not None:
+            note["auto"] = auto
+        if "B" in curve:
             for label, tau in (("1", tau_fwd), ("-1", tau_end)):
                 for k in ("B", "theta_p"):
                     note[f"{k}_at_gamma_{label}"] = at_tau(curve, k, tau)
@@ -221,7 +240,7 @@ def run(args) -> CaseResult:
             steady = since_start > 2.0 * args.dgamma    # not across an elastic transient
             note["max_dev_vs_point"] = float(np.max(np.abs(
                 np.interp(point["tau"], curve["tau"], curve["ratio"]) - ratio)[steady]))
-        notes[f"tier{tier}"] = note
+        notes[key] = note
         files += r["files"]
     if args.out is not None:
         files.append(write_csv(Path(args.out) / "simple_shear_reversal_vs_dem.csv",

@@ -161,7 +161,7 @@ def test_a_failed_study_run_is_recorded_and_the_others_still_run(monkeypatch):
                 "psi0": 10.0, "band_c_min": 0.8, "dofs": 1, "wall_s": 0.0, "steps": 1,
                 "median_newton": 1.0, "files": []}
 
-    def fake_biax(params, element, level, dense, strain, out, progress, lam=None):
+    def fake_biax(params, element, level, dense, strain, out, progress, lam=None, **kw):
         if lam is not None:
             raise _failure(2.9)
         return main_run

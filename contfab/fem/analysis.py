@@ -9,6 +9,10 @@ fails below the minimum step, the last converged state is written as a frame, th
 curve so far is saved, ``NAME_failure.json`` holds the report, and the
 :class:`~contfab.fem.solver.ConvergenceError` is re-raised with the paths added and
 the curve so far as its ``curve`` (also without an output directory).
+
+Each committed step also feeds the loading indicators of every quadrature point
+(:class:`contfab.indicators.Tracker`: axes rotation, reversal, distance from c*), the
+run-time input of ``tier = "auto"`` (:mod:`contfab.fem.auto`); ``RunResult.indicators``.
 """
 from __future__ import annotations
 
@@ -22,6 +26,7 @@ from tqdm import tqdm
 
 from contfab.fem.output import VtuSeries, plot_curve, plot_field
 from contfab.fem.solver import ConvergenceError, Solver, Stage
+from contfab.indicators import Tracker
 from dem.fileio import write_csv, write_json
 
 
@@ -46,6 +51,7 @@ class RunResult:
     rows: list[list]
     files: list[Path] = field(default_factory=list)
     iterations: list[int] = field(default_factory=list)
+    indicators: Tracker | None = None
 
     def column(self, name: str) -> np.ndarray:
         j = self.columns.index(name)
@@ -63,6 +69,11 @@ def run(solver: Solver, stages: Sequence[Stage], measure: Callable[[Solver], dic
     record_stages = [s.name for s in stages] if record_stages is None else list(record_stages)
     first = measure(solver)
     result = RunResult(["stage", "t", "iterations", "cuts", *first], [])
+    names = solver.material.state_names
+    c_col = names.index("c") if "c" in names else None
+    params = getattr(solver.material, "params", None)
+    c_star = params.tier1.c_star if c_col is not None and params is not None else float("nan")
+    result.indicators = tracker = Tracker(solver.committed.stress, c_star)
     series = None
     if outputs.outdir is not None:
         series = VtuSeries(outputs.outdir, outputs.name, solver.disc, solver.material.state_names)
@@ -75,8 +86,13 @@ def run(solver: Solver, stages: Sequence[Stage], measure: Callable[[Solver], dic
                        bar_format="{desc} {percentage:3.0f}%|{bar}| {elapsed}<{remaining}{postfix}",
                        leave=False)
             with bar:
+                stress_before = solver.committed.stress
                 for rec in solver.run_stage(stage):
-                    gp_before, gp_last = gp_last, solver.committed.state[:, gp_col]
+                    c = solver.committed
+                    gp_before, gp_last = gp_last, c.state[:, gp_col]
+                    tracker.update(stress_before, c.stress, c.dstrain, c.status >= 1,
+                                   None if c_col is None else c.state[:, c_col])
+                    stress_before = c.stress
                     bar.update(rec.dt)
                     bar.set_postfix_str(f"t={rec.t:.3f} newton={rec.iterations} cuts={rec.cuts}")
                     if stage.name not in record_stages:

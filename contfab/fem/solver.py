@@ -88,7 +88,8 @@ class FieldState:
     """A complete solution: displacement, per-point stress/state/tangent/status, residual.
 
     ``t`` is the stage parameter and ``stage`` the stage's name; ``residual`` is
-    r = f_int - f_ext (reactions on constrained DOFs, ≈ 0 elsewhere).
+    r = f_int - f_ext (reactions on constrained DOFs, ≈ 0 elsewhere); ``dstrain`` is the
+    strain increment per point of the step that led here (None for the initial state).
     """
 
     stage: str
@@ -100,6 +101,7 @@ class FieldState:
     spin_tangent: np.ndarray
     status: np.ndarray
     residual: np.ndarray
+    dstrain: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -478,7 +480,7 @@ class Solver:
     def _field(self, stage: Stage, t: float, it: _Iterate) -> FieldState:
         return FieldState(stage.name, t, it.u, it.res.stress, it.res.state,
                           np.ascontiguousarray(it.res.tangent), it.spin_tangent, it.res.status,
-                          it.r)
+                          it.r, it.dstrain)
 
     def _spin_tangent(self, stress_n, state_n, dstrain, dspin, res) -> np.ndarray:
         """g = ∂σ/∂ω: the material's own (``material.spin_tangent``) if it has one, else a

@@ -1,119 +1,170 @@
-"""``tier = "auto"``: the cheapest model tier whose measured error bound meets a tolerance.
+"""``tier = "auto"``: the cheapest model whose measured error bound meets a tolerance.
 
 Two ingredients:
 
 * **Measured bounds** (:data:`TABLE_FILE`, a small CSV in the package): per loading class
-  ("monotonic", "reversal") and tier, the RMS error of R/P against the DEM and the cost per
-  material-point increment, as measured by the studies ``tier_biaxial`` and ``tier_reversal``
-  (:mod:`contfab.tradeoff.tier_studies`; :func:`table_from_studies` rebuilds the file from
-  their output tables).
-* **Run-time indicators** of the loading a point sees (:func:`indicators`), from a history
-  with the columns of :data:`dem.history.HISTORY_COLUMNS` (a cheap pilot run):
-  rotation of the principal stress axes (largest change of α = ½ atan2(2σxy, σxx - σyy)
-  from the first row with mobilized shear, R/P >= ``MOBILIZED``, degrees, mod 180°), load reversal (the deviatoric stress power
-  s' : Δε = ½(σxx - σyy)(Δεxx - Δεyy) + σxy Δγxy, with the stress at the start of each
-  row interval, changes sign from positive to negative after the shear was mobilized), and the largest distance from the critical
-  state |c - c*|.
+  ("monotonic", "reversal") and model (tier 0, tier 1, tier 2 with each fabric law), the
+  error of R/P against the DEM and the cost per material-point increment. The errors come
+  from the calibration campaign of the shipped parameters (``contfab calibrate``: N = 1000,
+  3 seeds per path; its ``errors.csv``, kept as ``docs/calibration/errors.csv``),
+  :func:`table_from_calibration`: for "monotonic" the largest RMS R/P error over the path
+  among the monotonic paths (:data:`MONOTONIC_PATHS`); for "reversal" the largest RMS R/P
+  error over the first 0.1 strain after the reversal or change of direction
+  (``rms_transient``) among :data:`REVERSAL_PATHS` — the part of such a path where the
+  models differ. The cost is CPU µs per increment of the material-point driver on the
+  class's path (:func:`measure_costs`). Each model row names its parameter file (the
+  shipped defaults, or the calibration's fit of the other fabric law, shipped beside them
+  in ``contfab/data``); both files share the tier-0/1 sections.
+* **Indicators** of the loading each point sees (:mod:`contfab.indicators`: rotation of
+  the principal stress axes, load reversal, distance from the critical state), which give
+  its loading class.
 
-The loading class is "reversal" when a reversal is seen or the axes rotate by more than
-:data:`ROTATION_LIMIT_DEG`, "monotonic" otherwise. :func:`choose` returns the cheapest tier
-whose bound for that class is at most the tolerance, with the reason; if none meets it, the
-most accurate tier, saying so.
+:func:`choose` returns the cheapest model whose bound for the class is at most the tolerance,
+with the reason; if none meets it, the most accurate, saying so. :mod:`contfab.fem.auto`
+runs a boundary-value problem with the choice per point.
 """
 from __future__ import annotations
 
 import csv
 import math
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping
 
-import numpy as np
+from contfab.indicators import CLASSES, Indicators
+from contfab.params import Params, load_params
 
 TABLE_FILE = Path(__file__).resolve().parent / "data" / "tier_errors.csv"
-ROTATION_LIMIT_DEG = 15.0
-MOBILIZED = 0.1
-"""Stress ratio R/P above which the shear counts as mobilized (reversal detection)."""
-CLASSES = ("monotonic", "reversal")
+DATA_DIR = Path(__file__).resolve().parent.parent / "data"
+MONOTONIC_PATHS = ("biaxial", "isochoric_shear")
+REVERSAL_PATHS = ("simple_shear_reversal", "direction_change")
+MODELS = {"tier 0": (0, "default_params.toml"), "tier 1": (1, "default_params.toml"),
+          "tier 2 relaxation": (2, "default_params.toml"),
+          "tier 2 balance": (2, "params_tier2_balance.toml")}
+"""Model name of the calibration report -> (tier, parameter file in contfab/data)."""
+COST_PATHS = {"monotonic": "biaxial", "reversal": "simple_shear_reversal"}
 
 
 class AutoTierError(ValueError):
     """A tolerance or a table that cannot give a choice."""
 
 
+# --------------------------------------------------------------------------- bounds and choice
+
 @dataclass(frozen=True)
-class Indicators:
-    axes_rotation_deg: float
-    reversal: bool
-    critical_distance: float
+class Choice:
+    """The model chosen for a loading class, its measured bound and why."""
 
-    @property
-    def loading(self) -> str:
-        rotated = self.axes_rotation_deg > ROTATION_LIMIT_DEG
-        return "reversal" if (self.reversal or rotated) else "monotonic"
-
-
-def indicators(history: Mapping[str, np.ndarray], c_star: float) -> Indicators:
-    """The indicators of the module doc from a history (arrays per column)."""
-    sxx, syy, sxy = (np.asarray(history[k], float) for k in ("sxx", "syy", "sxy"))
-    rp = np.asarray(history["RP"], float)
-    mobilized = rp >= MOBILIZED
-    alpha = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)[mobilized]
-    turn = (np.degrees(np.abs((alpha - alpha[0] + 0.5 * np.pi) % np.pi - 0.5 * np.pi))
-            if len(alpha) else np.zeros(1))
-    dexx, deyy = np.diff(history["eps_xx"]), np.diff(history["eps_yy"])
-    dgam = 2.0 * np.diff(history["eps_xy"])
-    start = slice(None, -1)      # the stress at the start of each interval meets its strain
-    power = 0.5 * (sxx[start] - syy[start]) * (dexx - deyy) + sxy[start] * dgam
-    positive = np.maximum.accumulate((power > 0) & mobilized[start])
-    reversal = bool(np.any(positive & (power < 0)))
-    c = np.asarray(history["c_p" if "c_p" in history else "c"], float)   # the hardening c
-    dist = float(np.nanmax(np.abs(c - c_star))) if np.any(np.isfinite(c)) else math.nan
-    return Indicators(float(turn.max()), reversal, dist)
+    loading: str
+    model: str
+    tier: int
+    params_file: str
+    error: float
+    met: bool
+    reason: str
 
 
 def load_table(path: str | Path = TABLE_FILE) -> dict[str, list[dict]]:
-    """{loading class: [{tier, error, cost}] sorted by cost}."""
+    """{loading class: [{model, tier, params_file, error, cost}] sorted by cost}."""
     table: dict[str, list[dict]] = {k: [] for k in CLASSES}
     with open(path, newline="") as fh:
         for row in csv.DictReader(fh):
-            table[row["loading"]].append({"tier": int(row["tier"]), "error": float(row["error_RP"]),
-                                          "cost": float(row["cost_us"])})
+            table[row["loading"]].append({
+                "model": row["model"], "tier": int(row["tier"]), "params_file": row["params_file"],
+                "error": float(row["error_RP"]), "cost": float(row["cost_us"])})
     for rows in table.values():
         rows.sort(key=lambda r: r["cost"])
     return table
 
 
-def choose(ind: Indicators, tolerance: float, table: Mapping[str, list[dict]] | None = None
-           ) -> tuple[int, str]:
-    """(tier, reason): the cheapest tier whose bound for the loading class meets ``tolerance``."""
-    if not (isinstance(tolerance, (int, float)) and tolerance > 0 and math.isfinite(tolerance)):
+def choose(ind: Indicators | str, tolerance: float,
+           table: Mapping[str, list[dict]] | None = None, min_tier: int = 0) -> Choice:
+    """The cheapest model of tier >= ``min_tier`` whose bound for the loading class of
+    ``ind`` (Indicators, or a class name) meets ``tolerance`` (RMS error of R/P against
+    the DEM)."""
+    if isinstance(tolerance, bool) or not (isinstance(tolerance, (int, float))
+                                           and tolerance > 0 and math.isfinite(tolerance)):
         raise AutoTierError(f"tolerance = {tolerance!r} out of range; accepted (0, inf) "
                             f"(RMS error of R/P against the DEM)")
+    loading = ind if isinstance(ind, str) else ind.loading
+    if loading not in CLASSES:
+        raise AutoTierError(f"loading class {loading!r} unknown; accepted: {', '.join(CLASSES)}")
     table = load_table() if table is None else table
-    rows = table[ind.loading]
+    rows = [r for r in table[loading] if r["tier"] >= min_tier]
     if not rows:
-        raise AutoTierError(f"the error table has no rows for {ind.loading} loading")
-    why = (f"{ind.loading} loading (axes rotation {ind.axes_rotation_deg:.1f}°, "
-           f"reversal {'seen' if ind.reversal else 'not seen'}, |c - c*| <= "
-           f"{ind.critical_distance:.3g})")
+        raise AutoTierError(f"the error table has no rows of tier >= {min_tier} for {loading} "
+                            f"loading")
+    why = f"{loading} loading"
+    if not isinstance(ind, str):
+        why += (f" (axes rotation {ind.axes_rotation_deg:.1f}°, reversal "
+                f"{'seen' if ind.reversal else 'not seen'}, |c - c*| <= {ind.critical_distance:.3g})")
     for r in rows:
         if r["error"] <= tolerance:
-            return r["tier"], (f"tier {r['tier']}: cheapest with measured R/P error "
-                               f"{r['error']:.3g} <= {tolerance:g} for {why}")
+            dearer = [f"{x['model']} {x['error']:.3g}" for x in rows if x["cost"] < r["cost"]]
+            return Choice(loading, r["model"], r["tier"], r["params_file"], r["error"], True,
+                          f"{r['model']}: cheapest with measured R/P error {r['error']:.3g} <= "
+                          f"{tolerance:g} for {why}"
+                          + (f" (cheaper ones exceed it: {', '.join(dearer)})" if dearer else ""))
     best = min(rows, key=lambda r: r["error"])
-    return best["tier"], (f"tier {best['tier']}: no tier meets {tolerance:g} for {why}; "
-                          f"the most accurate (R/P error {best['error']:.3g})")
+    return Choice(loading, best["model"], best["tier"], best["params_file"], best["error"], False,
+                  f"{best['model']}: no model meets {tolerance:g} for {why}; the most accurate "
+                  f"(R/P error {best['error']:.3g})")
 
 
-def table_from_studies(out: str | Path, table: str | Path = TABLE_FILE) -> Path:
-    """Rebuild the table from ``OUT/tier_biaxial/tier_biaxial.csv`` (monotonic) and
-    ``OUT/tier_reversal/tier_reversal.csv`` (reversal)."""
+def params_for(base: Params, choice: Choice) -> Params:
+    """``base`` with the ``[tier2]`` section of the chosen model's parameter file (the
+    tier-0/1 sections and the scene's changes to the others stay ``base``'s)."""
+    if choice.tier < 2:
+        return base
+    other = load_params(DATA_DIR / choice.params_file)
+    if other.tier1 != base.tier1:
+        raise AutoTierError(f"{choice.params_file}: its [tier1] differs from the case's; the "
+                            f"measured bound of {choice.model} does not apply")
+    return Params(base.tier, {**base.sections, "tier2": other.tier2},
+                  f"{base.source} with [tier2] of {choice.params_file}")
+
+
+def table_from_calibration(errors_csv: str | Path, costs: Mapping[tuple[str, str], float],
+                           table: str | Path = TABLE_FILE) -> Path:
+    """Rebuild :data:`TABLE_FILE` from a calibration's ``errors.csv`` (module doc) and the
+    costs {(loading, model): µs} of :func:`measure_costs`."""
     from dem.fileio import write_csv
 
-    rows = []
-    for loading, name in (("monotonic", "tier_biaxial"), ("reversal", "tier_reversal")):
-        with open(Path(out) / name / f"{name}.csv", newline="") as fh:
-            for r in csv.DictReader(fh):
-                rows.append([loading, int(r["tier"]), float(r["error_RP"]), float(r["cost"])])
-    return write_csv(table, ("loading", "tier", "error_RP", "cost_us"), rows)
+    worst: dict[tuple[str, str], float] = {}
+    with open(errors_csv, newline="") as fh:
+        for r in csv.DictReader(fh):
+            if r["quantity"] != "RP" or r["model"] not in MODELS or r["role"] == "reference":
+                continue
+            loading = ("monotonic" if any(r["path"].startswith(p) for p in MONOTONIC_PATHS)
+                       else "reversal" if any(r["path"].startswith(p) for p in REVERSAL_PATHS)
+                       else None)
+            if loading is None:
+                continue
+            value = float(r["rms"] if loading == "monotonic" else r["rms_transient"])
+            if not math.isfinite(value):
+                raise AutoTierError(f"{errors_csv}: {r['model']} on {r['path']} has no finite error")
+            key = (loading, r["model"])
+            worst[key] = max(worst.get(key, 0.0), value)
+    rows = [[loading, model, MODELS[model][0], MODELS[model][1], err, costs[(loading, model)]]
+            for (loading, model), err in sorted(worst.items())]
+    return write_csv(table, ("loading", "model", "tier", "params_file", "error_RP", "cost_us"), rows)
+
+
+def measure_costs(repeats: int = 3, increment: float = 4e-3) -> dict[tuple[str, str], float]:
+    """CPU µs per material-point increment of each model on each class's path
+    (:data:`COST_PATHS`), the least of ``repeats`` runs after a compiling one."""
+    from contfab.material_point import run_path
+
+    costs = {}
+    for loading, path in COST_PATHS.items():
+        for model, (tier, file) in MODELS.items():
+            params = load_params(DATA_DIR / file)
+            run_path(path, params, tier, increment=0.05)
+            best = math.inf
+            for _ in range(repeats):
+                t0 = time.process_time()
+                res = run_path(path, params, tier, increment=increment)
+                best = min(best, time.process_time() - t0)
+            costs[(loading, model)] = 1e6 * best / res.history["increments"][-1]
+    return costs
