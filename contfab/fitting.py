@@ -151,10 +151,14 @@ def residuals(samples: Sequence[Mapping[str, np.ndarray]], refs: Sequence[Mappin
             d = (model[q][ok] - dem[ok]) / scale[q]
             d[~np.isfinite(d)] = PENALTY
             parts.append(d / math.sqrt(max(ok.sum(), 1)))
+            # Window means as in contfab.curves.errors: over the points each curve has
+            # (a model run ends at the path's end, a DEM grid can pass it by a time step:
+            # one missing end point must not turn the steady-state term into PENALTY).
             w = window & ok
-            m_res = np.mean(model[q][w]) if w.any() else math.nan
-            r = (m_res - np.mean(dem[w])) / scale[q] if w.any() else 0.0
-            parts.append(np.array([r if math.isfinite(r) else PENALTY]))
+            mw = w & np.isfinite(model[q])
+            r = ((np.mean(model[q][mw]) - np.mean(dem[w])) / scale[q] if mw.any()
+                 else (PENALTY if w.any() else 0.0))
+            parts.append(np.array([r]))
     return np.concatenate(parts)
 
 

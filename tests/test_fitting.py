@@ -1,0 +1,60 @@
+"""The least-squares residual vector of contfab.fitting on a stored DEM curve.
+
+Each path and quantity contributes the whole curve, (model - DEM)/scale/sqrt(n) per grid
+point, and one steady-state term, (window mean of the model - that of the DEM)/scale. A
+model that misses grid points (a failed run, or one DEM row a time step past the path's
+end) is penalized at those points in the curve part, while the steady-state term is taken
+over the points it has, as in contfab.curves.errors — it turned into the constant PENALTY
+when the model missed the DEM grid's last point, so the fit never saw the steady states.
+"""
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from contfab.curves import errors, read_curve
+from contfab.fitting import PENALTY, Target, residuals
+from dem.paths import load_path
+
+REF = Path(__file__).parent / "data" / "dem_reference"
+NAME = "biaxial_loose_k1000"
+SHIFT = 0.01
+SCALE = {"RP": 0.02}
+
+
+@pytest.fixture(scope="module")
+def target():
+    entry = json.loads((REF / "index.json").read_text())["curves"][NAME]
+    return Target(NAME, load_path(entry["path"]), read_curve(REF / entry["file"], entry["start"]))
+
+
+def shifted(target, missing):
+    """The DEM mean curve shifted by SHIFT in R/P, NaN at the grid points ``missing``."""
+    model = {q: v.copy() for q, v in target.curve.mean.items()}
+    model["RP"] = model["RP"] + SHIFT
+    model["RP"][missing] = math.nan
+    return model
+
+
+def test_steady_state_term_survives_a_missing_end_point(target):
+    n = len(target.curve.grid)
+    r = residuals([shifted(target, [n - 1])], [target.curve.mean], [target], ("RP",), SCALE)
+    assert len(r) == n + 1
+    assert r[n - 1] == pytest.approx(PENALTY / math.sqrt(n), rel=1e-12)
+    assert np.allclose(r[:n - 1], SHIFT / SCALE["RP"] / math.sqrt(n), rtol=1e-12)
+    # the steady term is the shift, up to what dropping the end point moves the window mean
+    dem = target.curve.mean["RP"]
+    window = target.curve.grid.residual_window()
+    moved = abs(dem[-1] - dem[window].mean()) / (window.sum() - 1) / SCALE["RP"]
+    assert abs(r[-1] - SHIFT / SCALE["RP"]) <= moved * (1 + 1e-9)
+    # and it is the reported steady error of the same sample (contfab.curves.errors)
+    err = errors(target.curve, shifted(target, [n - 1]), ("RP",))["RP"]["residual_error"]
+    assert err / SCALE["RP"] == pytest.approx(r[-1], rel=1e-12)
+
+
+def test_a_model_missing_the_whole_window_is_penalized(target):
+    window = np.flatnonzero(target.curve.grid.residual_window())
+    r = residuals([shifted(target, window)], [target.curve.mean], [target], ("RP",), SCALE)
+    assert r[-1] == PENALTY
