@@ -321,19 +321,37 @@ def _probing(cs, layout, models, out: FsPath) -> dict:
     responses = {"DEM seed 1": dem["responses"][0]}
     analyses = {"DEM seed 1": dem["analyses"][0]}
     for name, (params, tier) in models.items():
+        if tier < 2:        # the isotropic cone's flow direction, whatever the probes do
+            result["models"][name] = {"closed_form": _cone_probe(params, tier, dem["state"]["c"])}
         if tier == 0:       # perfectly plastic: a stress probe outward has no solution
             continue
         try:
             resp, ana, pre = model_probing(params, tier, layout, dem["start"])
         except ValueError as exc:           # the model cannot follow the preload or probes
-            result["models"][name] = {"error": str(exc)}
+            result["models"][name] = {**result["models"].get(name, {}), "error": str(exc)}
             continue
-        result["models"][name] = {**ana.to_dict(), "RP": float(pre["RP"][-1]),
-                                  "c": float(pre["c"][-1])}
+        result["models"][name] = {**result["models"].get(name, {}), **ana.to_dict(),
+                                  "RP": float(pre["RP"][-1]), "c": float(pre["c"][-1])}
         responses[name], analyses[name] = resp, ana
     result["files"] = {"probing_plot": probe_plot(responses, analyses, out / "report" / "probing.png",
                                                   "stress probing: plastic strain directions")}
     return result
+
+
+def _cone_probe(params: Params, tier: int, c: float) -> dict:
+    """Yield normal, flow direction and non-associativity δ (degrees) of the isotropic cone
+    at packing fraction ``c`` (:func:`contfab.probing.cone_angles`): what the probes of a
+    tier-0/1 point must find, and its answer where they have none (at zero hardening an
+    outward stress probe has no bounded solution)."""
+    from contfab.models import cone
+    from contfab.probing import cone_angles
+
+    if tier == 0:
+        phi, psi = math.radians(params.tier0.phi_deg), math.radians(params.tier0.psi_deg)
+    else:
+        phi, psi = cone.friction_angles(c, *params.array(1)[2:])[:2]
+    normal, flow, delta = cone_angles(math.sin(phi), math.sin(psi))
+    return {"normal_deg": normal, "flow_deg": flow, "delta_deg": delta, "c": float(c)}
 
 
 def _mean_sd(dicts: Sequence[Mapping[str, float]]) -> dict:
@@ -412,7 +430,9 @@ def _summary(cs, tier, fits, choice, heldout_objective, rows, probing, seconds, 
     if probing:
         provenance["probing_nonassociativity_deg"] = {
             "DEM": probing["dem"]["nonassociativity_deg"]["mean"],
-            **{k: v.get("nonassociativity_deg", math.nan) for k, v in probing["models"].items()}}
+            **{k: v.get("nonassociativity_deg", math.nan) for k, v in probing["models"].items()},
+            **{f"{k} closed form": v["closed_form"]["delta_deg"]
+               for k, v in probing["models"].items() if "closed_form" in v}}
     return {"provenance": provenance, "acceptance": acceptance_rows(rows, sorted(set(models))),
             "transients": transient_rows(rows),
             "errors": rows, "probing": probing, "fits": fit_tables, "tier": tier,
@@ -449,7 +469,12 @@ def _write_markdown(file: FsPath, s: Mapping) -> FsPath:
         lines.append("## Stress probing (non-associativity angle δ = normal - flow, degrees)\n")
         rows = [{"who": "DEM (mean over seeds)", **{k: v["mean"] for k, v in p["dem"].items()},
                  "sd": p["dem"]["nonassociativity_deg"]["sd"]}]
-        rows += [{"who": k, **v} for k, v in p["models"].items()]
+        for k, v in p["models"].items():
+            rows.append({"who": k, **{q: x for q, x in v.items() if q != "closed_form"}})
+            if "closed_form" in v:
+                cf = v["closed_form"]
+                rows.append({"who": f"{k}, closed form at c = {cf['c']:.4f}", "normal_deg": cf["normal_deg"],
+                             "flow_deg": cf["flow_deg"], "nonassociativity_deg": cf["delta_deg"]})
         lines.append(markdown_table(rows, ("who", "normal_deg", "flow_deg", "nonassociativity_deg",
                                            "sd", "sin_psi", "fit_r2", "plastic_max")))
         lines.append(f"DEM state probed: {p['dem_state']}\n")

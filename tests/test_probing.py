@@ -72,3 +72,23 @@ def test_start_option_refuses_another_tier_and_mixed_starts():
         mp.run_path(PRELOAD, PARAMS, 2, start=pre)
     with pytest.raises(ValueError, match="either start .* or stress0/state0"):
         mp.run_path(PRELOAD, PARAMS, 1, start=pre, state0={"c": 0.8})
+
+
+def test_the_cone_tiers_report_their_closed_form_flow_direction():
+    """Tiers 0/1 at c = c*: ψ = 0, so the plastic strain increment is isochoric (flow at
+    -45°) and δ = normal + 45° with the normal atan2(-1 + sin φ*, 1 + sin φ*); this is the
+    calibration report's answer where the tier-1 probes have none (zero hardening)."""
+    import math
+
+    from contfab.calibrate import _cone_probe
+    from contfab.params import default_params
+
+    prm = default_params()
+    at_cstar = _cone_probe(prm.with_tier(1), 1, prm.tier1.c_star)
+    s = math.sin(math.radians(prm.tier1.phi_star_deg))
+    assert at_cstar["flow_deg"] == pytest.approx(-45.0, abs=1e-12)
+    assert at_cstar["normal_deg"] == pytest.approx(math.degrees(math.atan2(s - 1, s + 1)), abs=1e-12)
+    assert at_cstar["delta_deg"] == pytest.approx(at_cstar["normal_deg"] + 45.0, abs=1e-12)
+    denser = _cone_probe(prm.with_tier(1), 1, prm.tier1.c_star + 0.003)
+    # denser: dilatant (flow turns from -45° towards the normal) and stronger (normal up)
+    assert denser["flow_deg"] > -45.0 and denser["normal_deg"] > at_cstar["normal_deg"]
