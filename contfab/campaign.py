@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path as FsPath
 
@@ -158,17 +159,28 @@ class DemJob:
     path: str | None = None
     start: str | None = None      # checkpoint to start from (a prepared sample or a run's end)
 
-    def describe(self) -> dict:
+    def describe(self, base: FsPath) -> dict:
+        """What the job is, with ``start`` relative to ``base`` (the folder of its record),
+        so a campaign directory stays valid when it is moved or copied."""
         return {"settings": asdict(self.settings),
                 "path": None if self.path is None else load_path(self.path).to_dict(),
-                "start": self.start}
+                "start": _relative(self.start, base)}
+
+
+def _relative(start: str | None, base: FsPath) -> str | None:
+    if start is None:
+        return None
+    return os.path.relpath(os.path.abspath(start), os.path.abspath(base))
 
 
 def _check_same_job(file: FsPath, job: DemJob) -> None:
-    """Refuse a directory made by another job; record this job otherwise."""
-    mine = json.loads(json.dumps(job.describe()))
+    """Refuse a directory made by another job; record this job otherwise. (Records of
+    before 2026-12-02 hold an absolute ``start``: compared as the file it names.)"""
+    mine = json.loads(json.dumps(job.describe(file.parent)))
     if file.exists():
         theirs = json.loads(file.read_text())
+        if theirs.get("start") and os.path.isabs(theirs["start"]):
+            theirs["start"] = _relative(theirs["start"], file.parent)
         if theirs != mine:
             raise CampaignError(f"{file.parent} holds the results of a different job "
                                 f"({file}); use a fresh campaign directory")

@@ -89,6 +89,26 @@ def test_runs_of_other_settings_are_refused_in_a_campaign_directory(tmp_path):
             run_campaign(cs, tmp_path / "c", ex)
 
 
+def test_a_copied_campaign_directory_is_reused_not_refused(tmp_path):
+    """Job records name their start checkpoint relative to themselves: a campaign directory
+    copied elsewhere resumes there with nothing rerun (it was refused: absolute paths)."""
+    import shutil
+
+    path_file = tmp_path / "short.toml"
+    path_file.write_text(LONG.replace("length = 0.2", "length = 0.01"))
+    cs = settings(path_file)
+    with make_executor("serial") as ex:
+        run_campaign(cs, tmp_path / "here", ex)
+        shutil.copytree(tmp_path / "here", tmp_path / "there")
+        shutil.rmtree(tmp_path / "here")
+        history = Layout(tmp_path / "there").run(cs.runs[0].name, 1) / "history.csv"
+        stamp = history.stat().st_mtime_ns
+        run_campaign(cs, tmp_path / "there", ex)
+    assert history.stat().st_mtime_ns == stamp
+    job = json.loads((history.parent / "job.json").read_text())
+    assert not os.path.isabs(job["start"]) and job["start"].endswith("dense_k1000_seed1.npz")
+
+
 @pytest.mark.parametrize("change, error, words", [
     (dict(runs=(RunSpec("no_such_path", "dense", 1e3),)), PathError, "unknown loading path 'no_such_path'"),
     (dict(runs=(RunSpec("biaxial", "medium", 1e3),)), CampaignError, "density 'medium'"),
