@@ -141,6 +141,45 @@ def has_kinks(phi0, pc, ps, phi_lo, phi_hi):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
+def single_maximum(m, r, phi0, pc, ps, phi_lo, phi_hi):
+    r"""Whether h has a single local maximum on each arc, proved from bounds (no search):
+    then a safeguarded refinement from anywhere in the arc finds its maximum.
+
+    Without a clamp corner (:func:`has_kinks` False) write tan φ(u) = T0 + δT(u), T0 = tan φ0,
+    |φ - φ0| <= ρ = hypot(pc, ps). On arc g, h = T0 m + S cos(u - u*) + δh(u) with
+    S = R sec φ0, u* = atan2(-g, T0) and δh = δT (m + R cos u). With |φ_u|, |φ_uu| <= ρ,
+    K = sec²φ and t = |tan φ| at the larger |φ0 ± ρ|, M = |m| + R:
+
+        |δh'| <= D1 = K ρ (M + R),   |δh''| <= D2 = K ρ (1 + 2 t ρ) M + 3 K ρ R.
+
+    Let sin w = D1/S. Where |u - u*| is in [w, π - w], h' = -S sin(u - u*) + δh' keeps the
+    sign of -sin(u - u*); where |u - u*| < w, h'' <= -S cos w + D2. So with D1 < S,
+    D2 < S cos w and w <= |u*| <= π - w (the arc [0, π] or [-π, 0] then never reaches within
+    w of the antipode u* ± π), h rises, is strictly concave, then falls along the arc: one
+    maximum (possibly at an end). With ρ = 0 (φ independent of θ) this holds wherever R > 0.
+    """
+    if r <= 0.0 or has_kinks(phi0, pc, ps, phi_lo, phi_hi):
+        return False
+    rho = np.hypot(pc, ps)
+    t0 = np.tan(phi0)
+    amp = r * np.sqrt(1.0 + t0 * t0)
+    t = np.tan(max(abs(phi0 - rho), abs(phi0 + rho)))
+    k = 1.0 + t * t
+    big = abs(m) + r
+    d1 = k * rho * (big + r)
+    d2 = k * rho * (1.0 + 2.0 * t * rho) * big + 3.0 * k * rho * r
+    if not d1 < amp:
+        return False
+    sin_w = d1 / amp
+    cos_w = np.sqrt(1.0 - sin_w * sin_w)
+    if not d2 < amp * cos_w:
+        return False
+    w = np.arcsin(sin_w)
+    u_star = np.arctan2(1.0, t0)
+    return w <= u_star <= np.pi - w
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     """h, ∂h/∂u, ∂²h/∂u² at u = 2(θ - α) on the arc of sign g (the plane search)."""
     cu = np.cos(u)
@@ -188,6 +227,11 @@ def arc_maximum(g, u0, n_search, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     and the higher result is the maximum — two peaks nearly tied could otherwise be decided
     by the grid's samples, not by their values. Otherwise ``u0`` starts the refinement (a
     warm start) inside the whole arc. The grid's cos u, sin u follow by rotation through du.
+
+    The grid is skipped where h provably has a single maximum on the arc
+    (:func:`single_maximum`): the refinement then starts inside the whole arc from
+    u* = atan2(-g, tan φ0), the maximum of h's θ-independent part (for φ independent of θ
+    the maximum itself).
     """
     kinks = has_kinks(phi0, pc, ps, phi_lo, phi_hi)
     if g < 0.0:
@@ -196,6 +240,9 @@ def arc_maximum(g, u0, n_search, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     else:
         lo = -np.pi
         hi = 0.0
+    if n_search > 0 and single_maximum(m, r, phi0, pc, ps, phi_lo, phi_hi):
+        n_search = 0
+        u0 = np.arctan2(-g, np.tan(phi0))
     if n_search == 0:
         return _refine_on_arc(g, min(max(u0, lo), hi), lo, hi, kinks, m, r, ca, sa, phi0, pc,
                               ps, phi_lo, phi_hi)
