@@ -373,13 +373,19 @@ def _cutting_plane_guess(c_n, qn, fab, prm, sc):
     fabric_step(qn[0], qn[1], qn[2], dgam * n0, dgam * n1, dgam * n2,
                 c_n * np.exp(-dgam * yf[YF_TR]), law, prm[19], prm[20], prm[21], prm[22],
                 prm[23], prm[24], fq, sc.dq, sc.ws)
-    # ∂f/∂z · ∂z/∂Δγ, z = (c, A, Bc, Bs), through the angle coefficients p (∂p/∂z = sc.dpz).
+    # ∂f/∂z · ∂z/∂Δγ, z = (c, A, Bc, Bs), through the angle coefficients p (∂p/∂z = sc.dpz);
+    # the fabric's secant slope in row V_X0.
+    slope = sc.v[V_X0]
     hard = 0.0
     for z in range(4):
         fz = 0.0
         for j in range(3):
             fz += yf[YF_FP + j] * sc.dpz[j, z]
-        hard += fz * (-c_n * yf[YF_TR] if z == 0 else (fq[z - 1] - qn[z - 1]) / dgam)
+        if z == 0:
+            hard -= fz * c_n * yf[YF_TR]
+        else:
+            slope[z - 1] = (fq[z - 1] - qn[z - 1]) / dgam if dgam > 0.0 else 0.0
+            hard += fz * slope[z - 1]
     if den - hard > 0.0 and dgam > 0.0:
         dgam = yf[YF_F] / (den - hard)
     # The step at first order: dx = (Δσ, Δγ, Δc, Δq) with the trial's flow.
@@ -389,10 +395,8 @@ def _cutting_plane_guess(c_n, qn, fab, prm, sc):
     dx[2] = -dgam * cn2
     dx[3] = dgam
     dx[4] = c_n * np.expm1(-dgam * yf[YF_TR])
-    fabric_step(qn[0], qn[1], qn[2], dgam * n0, dgam * n1, dgam * n2, c_n + dx[4], law,
-                prm[19], prm[20], prm[21], prm[22], prm[23], prm[24], fq, sc.dq, sc.ws)
     for i in range(3):
-        dx[5 + i] = fq[i] - qn[i]
+        dx[5 + i] = slope[i] * dgam
     # The flow there, N + ∂N/∂σ Δσ + ∂N/∂p ∂p/∂z Δz (and tr N likewise): the step with it
     # leaves residuals of second order in the flow's change.
     nn = sc.v[V_XT]

@@ -87,6 +87,9 @@ N_YF = 47
 NEWTON_MAXIT_PLANE = 60
 PLANE_TOL = 1e-13
 """Plane search: a Newton or bisection step below this (radians of u) ends it."""
+PLANE_LAST_STEP = 1e-7
+"""Plane search: a Newton step below this is the last (Newton converges quadratically: it
+leaves ~1e-14, below PLANE_TOL's next step, without another evaluation of h)."""
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
@@ -311,10 +314,10 @@ def _end_value(u, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
 @njit(cache=True, error_model="numpy", _nrt=False)
 def _refine_on_arc(g, u, lo, hi, kinks, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     """The maximum of h in [lo, hi] from u: Newton on ∂h/∂u = 0, safeguarded by bisection
-    on the sign of ∂h/∂u. Where φ(θ) reaches a clamp (``kinks``), h = |τ| +
-    tan(clamp(φ_raw)) σn has a kink at the boundary and the maximum can sit on it (a corner,
-    ∂h/∂u jumping from + to -): a step that crosses a boundary stops there if it is a corner
-    maximum (:func:`_corner_on_arc`)."""
+    on the sign of ∂h/∂u (a Newton step below PLANE_LAST_STEP is the last). Where φ(θ)
+    reaches a clamp (``kinks``), h = |τ| + tan(clamp(φ_raw)) σn has a kink at the boundary
+    and the maximum can sit on it (a corner, ∂h/∂u jumping from + to -): a step that
+    crosses a boundary stops there if it is a corner maximum (:func:`_corner_on_arc`)."""
     for _ in range(NEWTON_MAXIT_PLANE):
         _, hu, huu = _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)
         if huu < 0.0 and abs(hu) < PLANE_TOL * -huu:   # the Newton step is below tolerance
@@ -326,7 +329,8 @@ def _refine_on_arc(g, u, lo, hi, kinks, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_
         else:
             return u
         un = u - hu / huu if huu < 0.0 else 0.5 * (lo + hi)
-        if not (lo < un < hi):
+        newton = huu < 0.0 and lo < un < hi
+        if not newton:
             un = 0.5 * (lo + hi)
         if kinks:
             cu = np.cos(u)
@@ -338,7 +342,7 @@ def _refine_on_arc(g, u, lo, hi, kinks, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_
                 return u + d
         step = abs(un - u)
         u = un
-        if step < PLANE_TOL:
+        if step < PLANE_TOL or (newton and step < PLANE_LAST_STEP):
             break
     return u
 
