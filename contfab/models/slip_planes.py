@@ -158,8 +158,9 @@ def single_maximum(m, r, phi0, pc, ps, phi_lo, phi_hi):
     Let sin w = D1/S. Where |u - u*| is in [w, π - w], h' = -S sin(u - u*) + δh' keeps the
     sign of -sin(u - u*); where |u - u*| < w, h'' <= -S cos w + D2. So with D1 < S,
     D2 < S cos w and w <= |u*| <= π - w (the arc [0, π] or [-π, 0] then never reaches within
-    w of the antipode u* ± π), h rises, is strictly concave, then falls along the arc: one
-    maximum (possibly at an end). With ρ = 0 (φ independent of θ) this holds wherever R > 0.
+    w of the antipode u* ± π; as sin |u*| = cos φ0 = R/S this is D1 <= R), h rises, is
+    strictly concave, then falls along the arc: one maximum (possibly at an end). With
+    ρ = 0 (φ independent of θ) this holds wherever R > 0.
     """
     if r <= 0.0 or has_kinks(phi0, pc, ps, phi_lo, phi_hi):
         return False
@@ -171,15 +172,11 @@ def single_maximum(m, r, phi0, pc, ps, phi_lo, phi_hi):
     big = abs(m) + r
     d1 = k * rho * (big + r)
     d2 = k * rho * (1.0 + 2.0 * t * rho) * big + 3.0 * k * rho * r
-    if not d1 < amp:
+    # w <= |u*| <= π - w  <=>  sin w <= sin |u*| = 1/sec φ0  <=>  D1 <= R (and then D1 < S).
+    if not d1 <= r:
         return False
     sin_w = d1 / amp
-    cos_w = np.sqrt(1.0 - sin_w * sin_w)
-    if not d2 < amp * cos_w:
-        return False
-    w = np.arcsin(sin_w)
-    u_star = np.arctan2(1.0, t0)
-    return w <= u_star <= np.pi - w
+    return d2 < amp * np.sqrt(1.0 - sin_w * sin_w)
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
