@@ -335,7 +335,7 @@ def _initial_guess(c_n, qn, prm, sc, planes):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def _cutting_plane_guess(c_n, qn, fab, prm, sc):
+def _cutting_plane_guess(c_n, qn, fab, prm, sc, hardening):
     """One cutting-plane step from σ_tr (planes at their maxima from the elastic check), with
     the hardening of c and the fabric: f linearized in Δγ along σ = σ_tr - Δγ C N,
     c = c_n exp(-Δγ tr N), q = Φ(q_n, Δγ N, c),
@@ -349,8 +349,9 @@ def _cutting_plane_guess(c_n, qn, fab, prm, sc):
     arcs' maxima there. Each of these removes a first-order residual (the fabric's
     relaxation rate makes a start from q_n a first-order one, the planes' motion another):
     the solve then starts ~1e-5 from the solution at the bench's increments and takes two
-    evaluations instead of three. The plain step where the hardening one is undefined;
-    False (the unknowns untouched) where ∂f/∂σ · C N <= 0."""
+    evaluations instead of three. The plain step where the hardening one is undefined, and
+    without ``hardening`` (the plain cutting-plane step alone: σ, Δγ, c, fabric at q_n,
+    planes untouched); False (the unknowns untouched) where ∂f/∂σ · C N <= 0."""
     bulk = prm[0]
     shear = prm[1]
     ttr = sc.v[V_TTR]
@@ -369,6 +370,16 @@ def _cutting_plane_guess(c_n, qn, fab, prm, sc):
     if not den > 0.0:
         return False
     dgam = yf[YF_F] / den
+    if not hardening:
+        x[0] = ttr[0] - dgam * cn0
+        x[1] = ttr[1] - dgam * cn1
+        x[2] = ttr[2] - dgam * cn2
+        x[3] = dgam
+        x[4] = c_n * np.exp(-dgam * yf[YF_TR])
+        x[5] = qn[0]
+        x[6] = qn[1]
+        x[7] = qn[2]
+        return True
     law = int(prm[18])
     fabric_step(qn[0], qn[1], qn[2], dgam * n0, dgam * n1, dgam * n2,
                 c_n * np.exp(-dgam * yf[YF_TR]), law, prm[19], prm[20], prm[21], prm[22],
@@ -819,9 +830,19 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
         # plane step from σ_tr is the better start; otherwise, or if that solve fails,
         # tier 1's coaxial return.
         near = f_tr <= CUTTING_PLANE_RANGE * s_ref
-        if not (near and _cutting_plane_guess(c_n, qs, fab, prm, sc)):
+        theta = sc.v[V_THETA]
+        theta_tr = (theta[0], theta[1])
+        if not (near and _cutting_plane_guess(c_n, qs, fab, prm, sc, True)):
             _initial_guess(c_n, qs, prm, sc, False)
         face, projected, ridge = _face_return(c_n, qs, prm, sc, s_ref)
+        if near and not face:
+            # The plain cutting-plane step from the trial's planes: the solve from it finds
+            # a point in some cases where the one from the hardening step does not, and the
+            # reverse (each ~1e-4 of the steps of loose anisotropic states, measured)
+            theta[0] = theta_tr[0]
+            theta[1] = theta_tr[1]
+            if _cutting_plane_guess(c_n, qs, fab, prm, sc, False):
+                face, projected, ridge = _face_return(c_n, qs, prm, sc, s_ref)
         if near and not face:
             _initial_guess(c_n, qs, prm, sc, True)
             face, projected, ridge = _face_return(c_n, qs, prm, sc, s_ref)
