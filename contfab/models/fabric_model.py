@@ -86,9 +86,9 @@ from contfab.models.cone import (STATUS_APEX, STATUS_ELASTIC, STATUS_FACE, STATU
 from contfab.models.fabric_law import balance_work, fabric_step, rotate_fabric
 from contfab.models.slip_planes import (N_P, N_PL, N_YF, PL_DT, PL_H, PL_HP, PL_HS, PL_TP, PL_TS,
                                         YF_F, YF_FP, YF_FS, YF_N, YF_NP, YF_NS, YF_TR, YF_TRP,
-                                        YF_TRS, fabric_terms, fabric_terms_jacobian,
-                                        single_maximum, stress_frame, yield_and_flow,
-                                        yield_value)
+                                        YF_TRS, arc_maxima, fabric_terms,
+                                        fabric_terms_jacobian, single_maximum, stress_frame,
+                                        yield_and_flow, yield_value)
 from contfab.tensors import isotropic_stiffness_into, rotate
 
 STATUS_PROJECTED = 3
@@ -443,8 +443,9 @@ def _cutting_plane_guess(c_n, qn, fab, prm, sc, hardening):
     x[5] = fq[0]
     x[6] = fq[1]
     x[7] = fq[2]
-    yield_value(x[0], x[1], x[2], fabric_terms(c, fq[0], fq[1], fq[2], prm, sc.dpz), prm[16],
-                0, theta)
+    m, r, ca, sa = stress_frame(x[0], x[1], x[2])
+    fab1 = fabric_terms(c, fq[0], fq[1], fq[2], prm, sc.dpz)
+    arc_maxima(m, r, ca, sa, np.arctan2(sa, ca), fab1, 0, theta)
     return True
 
 

@@ -227,11 +227,7 @@ def arc_maximum(g, u0, n_search, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     and the higher result is the maximum — two peaks nearly tied could otherwise be decided
     by the grid's samples, not by their values. Otherwise ``u0`` starts the refinement (a
     warm start) inside the whole arc. The grid's cos u, sin u follow by rotation through du.
-
-    The grid is skipped where h provably has a single maximum on the arc
-    (:func:`single_maximum`): the refinement then starts inside the whole arc from
-    u* = atan2(-g, tan φ0), the maximum of h's θ-independent part (for φ independent of θ
-    the maximum itself).
+    (:func:`arc_maxima` skips the grid where it is not needed.)
     """
     kinks = has_kinks(phi0, pc, ps, phi_lo, phi_hi)
     if g < 0.0:
@@ -240,9 +236,6 @@ def arc_maximum(g, u0, n_search, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     else:
         lo = -np.pi
         hi = 0.0
-    if n_search > 0 and single_maximum(m, r, phi0, pc, ps, phi_lo, phi_hi):
-        n_search = 0
-        u0 = np.arctan2(-g, np.tan(phi0))
     if n_search == 0:
         return _refine_on_arc(g, min(max(u0, lo), hi), lo, hi, kinks, m, r, ca, sa, phi0, pc,
                               ps, phi_lo, phi_hi)
@@ -593,26 +586,44 @@ def arc_u(theta, g, two_alpha):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
+def arc_maxima(m, r, ca, sa, two_alpha, fab, n_search, theta):
+    """(u0, u1): the maxima of both arcs (:func:`arc_maximum`) of the stress (m, R, 2α);
+    ``theta`` (2,) in/out: the planes (warm starts in, maximizers out).
+
+    Where h provably has a single maximum on each arc (:func:`single_maximum`) the grid of
+    ``n_search`` points is not needed: each refinement starts inside its whole arc from
+    u* = atan2(-g, tan φ0), the maximum of h's θ-independent part (for φ independent of θ
+    the maximum itself).
+    """
+    phi0, pc, ps = fab[0], fab[1], fab[2]
+    single = n_search > 0 and single_maximum(m, r, phi0, pc, ps, fab[8], fab[9])
+    u_star = np.arctan2(1.0, np.tan(phi0)) if single else 0.0
+    u0 = 0.0
+    u1 = 0.0
+    for k in range(2):
+        g = -1.0 if k == 0 else 1.0
+        start = -g * u_star if single else arc_u(theta[k], g, two_alpha)
+        u = arc_maximum(g, start, 0 if single else n_search, m, r, ca, sa, phi0, pc, ps,
+                        fab[8], fab[9])
+        theta[k] = 0.5 * (two_alpha + u)
+        if k == 0:
+            u0 = u
+        else:
+            u1 = u
+    return u0, u1
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
 def yield_value(sxx, syy, sxy, fab, beta, n_search, theta):
-    """f(σ) alone (the elastic check), searching both arcs.
+    """f(σ) alone (the elastic check), searching both arcs (:func:`arc_maxima`).
 
     ``theta`` (2,) in/out: the planes of the arc maxima (warm starts in, maximizers out).
     """
     m, r, ca, sa = stress_frame(sxx, syy, sxy)
     two_alpha = np.arctan2(sa, ca)
-    phi0, pc, ps = fab[0], fab[1], fab[2]
-    hk0 = 0.0
-    hk1 = 0.0
-    for k in range(2):
-        g = -1.0 if k == 0 else 1.0
-        u = arc_maximum(g, arc_u(theta[k], g, two_alpha), n_search, m, r, ca, sa, phi0, pc, ps,
-                        fab[8], fab[9])
-        theta[k] = 0.5 * (two_alpha + u)
-        h, _, _ = _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, fab[8], fab[9])
-        if k == 0:
-            hk0 = h
-        else:
-            hk1 = h
+    u0, u1 = arc_maxima(m, r, ca, sa, two_alpha, fab, n_search, theta)
+    hk0, _, _ = _h_on_arc(u0, -1.0, m, r, ca, sa, fab[0], fab[1], fab[2], fab[8], fab[9])
+    hk1, _, _ = _h_on_arc(u1, 1.0, m, r, ca, sa, fab[0], fab[1], fab[2], fab[8], fab[9])
     s = np.hypot(m, r)
     w0 = 0.5 if s == 0.0 else 1.0 / (1.0 + np.exp(beta * (hk1 - hk0) / s))
     return w0 * hk0 + (1.0 - w0) * hk1
