@@ -12,6 +12,22 @@ a plain numpy elastic update σ + C Δε of the same points in the same run, and
 rate is also given as a ratio to it. Timings are medians of ``--repeats`` runs of the
 process's CPU time (both sides are single-threaded, so this is the per-core figure even
 when other jobs share the cores; ``*_wall`` figures give the wall-clock rate too).
+
+Measured (updates/s per core, ``python -m contfab.cli bench model --json`` with nice -n 10
+on the shared 2-core machine, load ~3-5, median of 3 runs interleaved with main's code in
+the same session, 2026-12-01; main = f48fced, branch = model at 9ccd7eb):
+
+* tier0: main 2.55e7, 2.41e7, 2.38e7 (median 2.41e7); branch 2.31e7, 2.35e7, 2.35e7 (2.35e7)
+* tier2: main 2.10e5, 2.08e5, 2.18e5 (2.10e5); branch 2.73e5, 2.82e5, 2.76e5 (2.76e5)
+* tier2_aniso: main 2.16e5, 2.01e5, 2.11e5 (2.11e5); branch 2.68e5, 2.65e5, 2.75e5 (2.68e5)
+
+Where a tier-2 update's ~3.9 µs go (one pass of each stage added in turn, numba, over the
+bench's 120 000 points at 9ccd7eb; iso / aniso): trial and rotation 0.26 / 0.27, elastic
+check 0.57 / 0.59 (the plane search; no grid where slip_planes.single_maximum holds),
+start of the solve 1.02 / 0.98 (one yield/flow evaluation, the fabric law twice, the
+planes refined), local Newton 1.44 / 1.67 (2.0 / 2.05 evaluations; each yield/flow 0.37,
+residuals 0.18, 8x8 LU 0.25), maxima check 0.07 / 0.04, fabric and tangent 0.59 / 0.29
+(noisy). The 5e5 target of issue 3 is not reached.
 """
 from __future__ import annotations
 

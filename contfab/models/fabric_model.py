@@ -86,7 +86,8 @@ from contfab.models.cone import (STATUS_APEX, STATUS_ELASTIC, STATUS_FACE, STATU
 from contfab.models.fabric_law import balance_work, fabric_step, rotate_fabric
 from contfab.models.slip_planes import (N_P, N_PL, N_YF, PL_DT, PL_H, PL_HP, PL_HS, PL_TP, PL_TS,
                                         YF_F, YF_FP, YF_FS, YF_N, YF_NP, YF_NS, YF_TR, YF_TRP,
-                                        YF_TRS, fabric_terms, fabric_terms_jacobian,
+                                        YF_TRS, arc_maxima, fabric_terms,
+                                        fabric_terms_jacobian, single_maximum, stress_frame,
                                         yield_and_flow, yield_value)
 from contfab.tensors import isotropic_stiffness_into, rotate
 
@@ -334,16 +335,29 @@ def _initial_guess(c_n, qn, prm, sc, planes):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def _cutting_plane_guess(c_n, qn, fab, prm, sc):
-    """One cutting-plane step from σ_tr (planes at their maxima from the elastic check):
-    Δγ = f_tr / (∂f/∂σ · C N), σ = σ_tr - Δγ C N, c = c_n exp(-Δγ tr N), fabric at its start
-    value — first order in the step, so small increments start O(Δε²) from the solution.
-    False (the unknowns untouched) where the step is undefined (∂f/∂σ · C N <= 0)."""
+def _cutting_plane_guess(c_n, qn, fab, prm, sc, hardening):
+    """One cutting-plane step from σ_tr (planes at their maxima from the elastic check), with
+    the hardening of c and the fabric: f linearized in Δγ along σ = σ_tr - Δγ C N,
+    c = c_n exp(-Δγ tr N), q = Φ(q_n, Δγ N, c),
+
+        Δγ = f_tr / (∂f/∂σ · C N - ∂f/∂c ∂c/∂Δγ - ∂f/∂q · ∂q/∂Δγ),
+
+    ∂q/∂Δγ the secant of Φ over the plain step Δγ0 = f_tr / (∂f/∂σ · C N) (Φ is not
+    differentiable at Δεp = 0). The flow is then taken at the step's end to first order,
+    N + ∂N/∂σ Δσ + ∂N/∂z Δz (tr N likewise; Δγ again with it), the fabric set to Φ of that
+    plastic strain and the planes moved with the step (θ_σ Δσ + θ_p Δp) and refined to the
+    arcs' maxima there. Each of these removes a first-order residual (the fabric's
+    relaxation rate makes a start from q_n a first-order one, the planes' motion another):
+    the solve then starts ~1e-5 from the solution at the bench's increments and takes two
+    evaluations instead of three. The plain step where the hardening one is undefined, and
+    without ``hardening`` (the plain cutting-plane step alone: σ, Δγ, c, fabric at q_n,
+    planes untouched); False (the unknowns untouched) where ∂f/∂σ · C N <= 0."""
     bulk = prm[0]
     shear = prm[1]
     ttr = sc.v[V_TTR]
     x = sc.v[V_X]
     yf = sc.yfs[0]
+    fq = sc.v[V_FQ]
     yield_and_flow(ttr[0], ttr[1], ttr[2], fab, prm[16], False, 0, sc.v[V_THETA], sc.planes[0:2],
                    yf)
     n0 = yf[YF_N]
@@ -356,14 +370,82 @@ def _cutting_plane_guess(c_n, qn, fab, prm, sc):
     if not den > 0.0:
         return False
     dgam = yf[YF_F] / den
+    if not hardening:
+        x[0] = ttr[0] - dgam * cn0
+        x[1] = ttr[1] - dgam * cn1
+        x[2] = ttr[2] - dgam * cn2
+        x[3] = dgam
+        x[4] = c_n * np.exp(-dgam * yf[YF_TR])
+        x[5] = qn[0]
+        x[6] = qn[1]
+        x[7] = qn[2]
+        return True
+    law = int(prm[18])
+    fabric_step(qn[0], qn[1], qn[2], dgam * n0, dgam * n1, dgam * n2,
+                c_n * np.exp(-dgam * yf[YF_TR]), law, prm[19], prm[20], prm[21], prm[22],
+                prm[23], prm[24], fq, sc.dq, sc.ws)
+    # ∂f/∂z · ∂z/∂Δγ, z = (c, A, Bc, Bs), through the angle coefficients p (∂p/∂z = sc.dpz);
+    # the fabric's secant slope in row V_X0.
+    slope = sc.v[V_X0]
+    hard = 0.0
+    for z in range(4):
+        fz = 0.0
+        for j in range(3):
+            fz += yf[YF_FP + j] * sc.dpz[j, z]
+        if z == 0:
+            hard -= fz * c_n * yf[YF_TR]
+        else:
+            slope[z - 1] = (fq[z - 1] - qn[z - 1]) / dgam if dgam > 0.0 else 0.0
+            hard += fz * slope[z - 1]
+    if den - hard > 0.0 and dgam > 0.0:
+        dgam = yf[YF_F] / (den - hard)
+    # The step at first order: dx = (Δσ, Δγ, Δc, Δq) with the trial's flow.
+    dx = sc.v[V_DX]
+    dx[0] = -dgam * cn0
+    dx[1] = -dgam * cn1
+    dx[2] = -dgam * cn2
+    dx[3] = dgam
+    dx[4] = c_n * np.expm1(-dgam * yf[YF_TR])
+    for i in range(3):
+        dx[5 + i] = slope[i] * dgam
+    # The flow there, N + ∂N/∂σ Δσ + ∂N/∂p ∂p/∂z Δz (and tr N likewise): the step with it
+    # leaves residuals of second order in the flow's change.
+    nn = sc.v[V_XT]
+    for i in range(4):
+        row_s = YF_NS + 3 * i if i < 3 else YF_TRS
+        row_p = YF_NP + N_P * i if i < 3 else YF_TRP
+        v = yf[YF_N + i] if i < 3 else yf[YF_TR]
+        for j in range(3):
+            v += yf[row_s + j] * dx[j]
+        for j in range(N_P):
+            for z in range(4):
+                v += yf[row_p + j] * sc.dpz[j, z] * dx[4 + z]
+        nn[i] = v
+    cn0 = (bulk + shear) * nn[0] + (bulk - shear) * nn[1]
+    cn1 = (bulk - shear) * nn[0] + (bulk + shear) * nn[1]
+    cn2 = shear * nn[2]
+    # Δγ again, with that flow in the stress's part of f's linearization.
+    den = yf[YF_FS] * cn0 + yf[YF_FS + 1] * cn1 + yf[YF_FS + 2] * cn2 - hard
+    if den > 0.0:
+        dgam = yf[YF_F] / den
+    c = c_n * np.exp(-dgam * nn[3])
+    fabric_step(qn[0], qn[1], qn[2], dgam * nn[0], dgam * nn[1], dgam * nn[2], c, law,
+                prm[19], prm[20], prm[21], prm[22], prm[23], prm[24], fq, sc.dq, sc.ws)
+    # The planes follow to first order: θ_k + θ_σ·Δσ + θ_p·Δp (slip_planes.plane_terms).
+    theta = sc.v[V_THETA]
+    for k in range(2):
+        theta[k] += _plane_step(sc.planes[0:2], k, dx, sc.dpz)
     x[0] = ttr[0] - dgam * cn0
     x[1] = ttr[1] - dgam * cn1
     x[2] = ttr[2] - dgam * cn2
     x[3] = dgam
-    x[4] = c_n * np.exp(-dgam * yf[YF_TR])
-    x[5] = qn[0]
-    x[6] = qn[1]
-    x[7] = qn[2]
+    x[4] = c
+    x[5] = fq[0]
+    x[6] = fq[1]
+    x[7] = fq[2]
+    m, r, ca, sa = stress_frame(x[0], x[1], x[2])
+    fab1 = fabric_terms(c, fq[0], fq[1], fq[2], prm, sc.dpz)
+    arc_maxima(m, r, ca, sa, np.arctan2(sa, ca), fab1, 0, theta)
     return True
 
 
@@ -500,12 +582,17 @@ def _planes_are_maxima(prm, sc):
     planes) where the φ-anisotropy outweighs the stress ratio, the clamped plateau's and the
     free branch's maxima and corners where φ reaches a clamp (slip_planes) — and a solve can
     converge to any. With φ independent of θ (pc = ps = 0) each arc's h = -g R sin u +
-    tan φ (m + R cos u) is one sinusoid, whose single maximum lies inside the arc: True
+    tan φ (m + R cos u) is one sinusoid, whose single maximum lies inside the arc, and where
+    the anisotropy is weak enough for h to keep a single maximum per arc
+    (slip_planes.single_maximum, a bound) the converged planes are those maxima: True
     without a search. Row V_DTH ← the searched planes.
     """
     x = sc.v[V_X]
     fab = fabric_terms(x[4], x[5], x[6], x[7], prm, sc.dpz)
     if fab[1] == 0.0 and fab[2] == 0.0:
+        return True
+    m, r, _, _ = stress_frame(x[0], x[1], x[2])
+    if single_maximum(m, r, fab[0], fab[1], fab[2], fab[8], fab[9]):
         return True
     searched = sc.v[V_DTH]
     searched[0] = sc.v[V_THETA][0]
@@ -744,9 +831,19 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
         # plane step from σ_tr is the better start; otherwise, or if that solve fails,
         # tier 1's coaxial return.
         near = f_tr <= CUTTING_PLANE_RANGE * s_ref
-        if not (near and _cutting_plane_guess(c_n, qs, fab, prm, sc)):
+        theta = sc.v[V_THETA]
+        theta_tr = (theta[0], theta[1])
+        if not (near and _cutting_plane_guess(c_n, qs, fab, prm, sc, True)):
             _initial_guess(c_n, qs, prm, sc, False)
         face, projected, ridge = _face_return(c_n, qs, prm, sc, s_ref)
+        if near and not face:
+            # The plain cutting-plane step from the trial's planes: the solve from it finds
+            # a point in some cases where the one from the hardening step does not, and the
+            # reverse (each ~1e-4 of the steps of loose anisotropic states, measured)
+            theta[0] = theta_tr[0]
+            theta[1] = theta_tr[1]
+            if _cutting_plane_guess(c_n, qs, fab, prm, sc, False):
+                face, projected, ridge = _face_return(c_n, qs, prm, sc, s_ref)
         if near and not face:
             _initial_guess(c_n, qs, prm, sc, True)
             face, projected, ridge = _face_return(c_n, qs, prm, sc, s_ref)

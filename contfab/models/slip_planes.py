@@ -87,6 +87,9 @@ N_YF = 47
 NEWTON_MAXIT_PLANE = 60
 PLANE_TOL = 1e-13
 """Plane search: a Newton or bisection step below this (radians of u) ends it."""
+PLANE_LAST_STEP = 1e-7
+"""Plane search: a Newton step below this is the last (Newton converges quadratically: it
+leaves ~1e-14, below PLANE_TOL's next step, without another evaluation of h)."""
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
@@ -141,6 +144,42 @@ def has_kinks(phi0, pc, ps, phi_lo, phi_hi):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
+def single_maximum(m, r, phi0, pc, ps, phi_lo, phi_hi):
+    r"""Whether h has a single local maximum on each arc, proved from bounds (no search):
+    then a safeguarded refinement from anywhere in the arc finds its maximum.
+
+    Without a clamp corner (:func:`has_kinks` False) write tan φ(u) = T0 + δT(u), T0 = tan φ0,
+    |φ - φ0| <= ρ = hypot(pc, ps). On arc g, h = T0 m + S cos(u - u*) + δh(u) with
+    S = R sec φ0, u* = atan2(-g, T0) and δh = δT (m + R cos u). With |φ_u|, |φ_uu| <= ρ,
+    K = sec²φ and t = |tan φ| at the larger |φ0 ± ρ|, M = |m| + R:
+
+        |δh'| <= D1 = K ρ (M + R),   |δh''| <= D2 = K ρ (1 + 2 t ρ) M + 3 K ρ R.
+
+    Let sin w = D1/S. Where |u - u*| is in [w, π - w], h' = -S sin(u - u*) + δh' keeps the
+    sign of -sin(u - u*); where |u - u*| < w, h'' <= -S cos w + D2. So with D1 < S,
+    D2 < S cos w and w <= |u*| <= π - w (the arc [0, π] or [-π, 0] then never reaches within
+    w of the antipode u* ± π; as sin |u*| = cos φ0 = R/S this is D1 <= R), h rises, is
+    strictly concave, then falls along the arc: one maximum (possibly at an end). With
+    ρ = 0 (φ independent of θ) this holds wherever R > 0.
+    """
+    if r <= 0.0 or has_kinks(phi0, pc, ps, phi_lo, phi_hi):
+        return False
+    rho = np.hypot(pc, ps)
+    t0 = np.tan(phi0)
+    amp = r * np.sqrt(1.0 + t0 * t0)
+    t = np.tan(max(abs(phi0 - rho), abs(phi0 + rho)))
+    k = 1.0 + t * t
+    big = abs(m) + r
+    d1 = k * rho * (big + r)
+    d2 = k * rho * (1.0 + 2.0 * t * rho) * big + 3.0 * k * rho * r
+    # w <= |u*| <= π - w  <=>  sin w <= sin |u*| = 1/sec φ0  <=>  D1 <= R (and then D1 < S).
+    if not d1 <= r:
+        return False
+    sin_w = d1 / amp
+    return d2 < amp * np.sqrt(1.0 - sin_w * sin_w)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     """h, ∂h/∂u, ∂²h/∂u² at u = 2(θ - α) on the arc of sign g (the plane search)."""
     cu = np.cos(u)
@@ -188,6 +227,7 @@ def arc_maximum(g, u0, n_search, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     and the higher result is the maximum — two peaks nearly tied could otherwise be decided
     by the grid's samples, not by their values. Otherwise ``u0`` starts the refinement (a
     warm start) inside the whole arc. The grid's cos u, sin u follow by rotation through du.
+    (:func:`arc_maxima` skips the grid where it is not needed.)
     """
     kinks = has_kinks(phi0, pc, ps, phi_lo, phi_hi)
     if g < 0.0:
@@ -264,10 +304,10 @@ def _end_value(u, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
 @njit(cache=True, error_model="numpy", _nrt=False)
 def _refine_on_arc(g, u, lo, hi, kinks, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     """The maximum of h in [lo, hi] from u: Newton on ∂h/∂u = 0, safeguarded by bisection
-    on the sign of ∂h/∂u. Where φ(θ) reaches a clamp (``kinks``), h = |τ| +
-    tan(clamp(φ_raw)) σn has a kink at the boundary and the maximum can sit on it (a corner,
-    ∂h/∂u jumping from + to -): a step that crosses a boundary stops there if it is a corner
-    maximum (:func:`_corner_on_arc`)."""
+    on the sign of ∂h/∂u (a Newton step below PLANE_LAST_STEP is the last). Where φ(θ)
+    reaches a clamp (``kinks``), h = |τ| + tan(clamp(φ_raw)) σn has a kink at the boundary
+    and the maximum can sit on it (a corner, ∂h/∂u jumping from + to -): a step that
+    crosses a boundary stops there if it is a corner maximum (:func:`_corner_on_arc`)."""
     for _ in range(NEWTON_MAXIT_PLANE):
         _, hu, huu = _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)
         if huu < 0.0 and abs(hu) < PLANE_TOL * -huu:   # the Newton step is below tolerance
@@ -279,7 +319,8 @@ def _refine_on_arc(g, u, lo, hi, kinks, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_
         else:
             return u
         un = u - hu / huu if huu < 0.0 else 0.5 * (lo + hi)
-        if not (lo < un < hi):
+        newton = huu < 0.0 and lo < un < hi
+        if not newton:
             un = 0.5 * (lo + hi)
         if kinks:
             cu = np.cos(u)
@@ -291,7 +332,7 @@ def _refine_on_arc(g, u, lo, hi, kinks, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_
                 return u + d
         step = abs(un - u)
         u = un
-        if step < PLANE_TOL:
+        if step < PLANE_TOL or (newton and step < PLANE_LAST_STEP):
             break
     return u
 
@@ -545,26 +586,44 @@ def arc_u(theta, g, two_alpha):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
+def arc_maxima(m, r, ca, sa, two_alpha, fab, n_search, theta):
+    """(u0, u1): the maxima of both arcs (:func:`arc_maximum`) of the stress (m, R, 2α);
+    ``theta`` (2,) in/out: the planes (warm starts in, maximizers out).
+
+    Where h provably has a single maximum on each arc (:func:`single_maximum`) the grid of
+    ``n_search`` points is not needed: each refinement starts inside its whole arc from
+    u* = atan2(-g, tan φ0), the maximum of h's θ-independent part (for φ independent of θ
+    the maximum itself).
+    """
+    phi0, pc, ps = fab[0], fab[1], fab[2]
+    single = n_search > 0 and single_maximum(m, r, phi0, pc, ps, fab[8], fab[9])
+    u_star = np.arctan2(1.0, np.tan(phi0)) if single else 0.0
+    u0 = 0.0
+    u1 = 0.0
+    for k in range(2):
+        g = -1.0 if k == 0 else 1.0
+        start = -g * u_star if single else arc_u(theta[k], g, two_alpha)
+        u = arc_maximum(g, start, 0 if single else n_search, m, r, ca, sa, phi0, pc, ps,
+                        fab[8], fab[9])
+        theta[k] = 0.5 * (two_alpha + u)
+        if k == 0:
+            u0 = u
+        else:
+            u1 = u
+    return u0, u1
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
 def yield_value(sxx, syy, sxy, fab, beta, n_search, theta):
-    """f(σ) alone (the elastic check), searching both arcs.
+    """f(σ) alone (the elastic check), searching both arcs (:func:`arc_maxima`).
 
     ``theta`` (2,) in/out: the planes of the arc maxima (warm starts in, maximizers out).
     """
     m, r, ca, sa = stress_frame(sxx, syy, sxy)
     two_alpha = np.arctan2(sa, ca)
-    phi0, pc, ps = fab[0], fab[1], fab[2]
-    hk0 = 0.0
-    hk1 = 0.0
-    for k in range(2):
-        g = -1.0 if k == 0 else 1.0
-        u = arc_maximum(g, arc_u(theta[k], g, two_alpha), n_search, m, r, ca, sa, phi0, pc, ps,
-                        fab[8], fab[9])
-        theta[k] = 0.5 * (two_alpha + u)
-        h, _, _ = _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, fab[8], fab[9])
-        if k == 0:
-            hk0 = h
-        else:
-            hk1 = h
+    u0, u1 = arc_maxima(m, r, ca, sa, two_alpha, fab, n_search, theta)
+    hk0, _, _ = _h_on_arc(u0, -1.0, m, r, ca, sa, fab[0], fab[1], fab[2], fab[8], fab[9])
+    hk1, _, _ = _h_on_arc(u1, 1.0, m, r, ca, sa, fab[0], fab[1], fab[2], fab[8], fab[9])
     s = np.hypot(m, r)
     w0 = 0.5 if s == 0.0 else 1.0 / (1.0 + np.exp(beta * (hk1 - hk0) / s))
     return w0 * hk0 + (1.0 - w0) * hk1
