@@ -15,6 +15,10 @@ sends each cell its increment (:mod:`contfab.fexdem.cell`) through a cell backen
   regularization stiffness replaced by the cell's measured elastic modulus (the DEM
   cell is stiffer than the default λ; a tangent softer than the material makes the
   quasi-Newton iteration overshoot). Where that model fails, its elastic tangent.
+  ``tangent="dem"`` is the cells' own incremental stiffness at the trial increment
+  (:func:`contfab.fexdem.cell.cell_tangent`, one-sided differences with a probe of
+  ``probe`` max|Δe|: three more cell runs per point and iteration, i.e. Newton on the
+  DEM map itself); where a probe fails, the model's tangent.
   ``tangent="elastic"`` uses that elastic tangent everywhere (a stiff secant: the
   iteration contracts at ~1 - E_DEM/E per iteration). Measured on a dense 150-disc
   cell with the shipped (uncalibrated) parameters: the tier-1 tangent diverged at the
@@ -43,7 +47,10 @@ from contfab.tensors import isotropic_stiffness
 from dem import checkpoint
 
 STATE_NAMES = ("gp", "c", "A", "Bc", "Bs")
-TANGENTS = ("model", "elastic")
+TANGENTS = ("model", "elastic", "dem")
+DEM_PROBE = 0.1
+"""Relative probe of ``tangent="dem"``: h = 0.1 max|Δe| (docs/fexdem.md: the cells' stress
+noise is ~1e-5 P0 against a probe response of ~1e-2 P0)."""
 PROBE_STRAIN = 1e-5
 """Strain of the one-off probe that measures a cell's elastic modulus."""
 
@@ -67,10 +74,13 @@ class DemMaterial:
     state_names = STATE_NAMES
 
     def __init__(self, cells, disc, params: Params, p_unit: float = 1.0, tangent_tier: int = 1,
-                 modulus: float | None = None, tangent: str = "model"):
+                 modulus: float | None = None, tangent: str = "model", probe: float = DEM_PROBE):
         if tangent not in TANGENTS:
             raise ValueError(f"tangent = {tangent!r} unknown; accepted {TANGENTS}")
         self.tangent = tangent
+        if not (np.isfinite(probe) and probe > 0):
+            raise ValueError(f"probe = {probe} out of range; accepted (0, inf)")
+        self.probe = float(probe)
         if not (np.isfinite(p_unit) and p_unit > 0):
             raise ValueError(f"p_unit = {p_unit} out of range; accepted (0, inf) (stress per P0)")
         if tangent_tier not in (1, 2):
@@ -107,12 +117,15 @@ class DemMaterial:
         state_n = np.ascontiguousarray(state_n, dtype=float)
         dstrain = np.ascontiguousarray(dstrain, dtype=float)
         dspin = np.ascontiguousarray(dspin, dtype=float)
-        out = self.cells.trial(dstrain, dspin)
+        out = self.cells.trial(dstrain, dspin, self.probe if self.tangent == "dem" else 0.0)
         model = tiers.update(self.tangent_tier, stress_n, state_n[:, self._cols], dstrain, dspin,
                              self.params)
-        tangent = model.tangent.copy() if self.tangent == "model" else np.tile(self._elastic, (len(dspin), 1, 1))
+        tangent = model.tangent.copy() if self.tangent != "elastic" else np.tile(self._elastic, (len(dspin), 1, 1))
         status = np.where(model.status < 0, 0, model.status).astype(np.int8)
         tangent[model.status < 0] = self._elastic
+        if self.tangent == "dem":
+            own = np.all(np.isfinite(out["tangent"]), axis=(1, 2))
+            tangent[own] = out["tangent"][own] * self.p_unit
         stress = out["stress"] * self.p_unit
         dgp = np.hypot(dstrain[:, 0] - dstrain[:, 1], dstrain[:, 2])
         state = np.column_stack([state_n[:, 0] + dgp, out["state"]])
