@@ -216,3 +216,35 @@ def test_dem_tangent_converges_fast_where_the_elastic_one_crawls(sample):
     assert len(counts["dem"]) == len(counts["elastic"]) == 2
     assert max(counts["dem"]) <= 4
     assert sum(counts["elastic"]) > 2 * sum(counts["dem"])
+
+
+def test_interrupted_run_resumes_from_the_field_and_cell_checkpoints(sample, tmp_path):
+    """An FE×DEM run stopped after step 2 of 4 and resumed from its checkpoints (FE field
+    and cells in one directory) ends with the uninterrupted run's stresses and
+    displacements bitwise, and the same step records; a checkpoint of another stage
+    is refused."""
+    import dataclasses
+    scene = build("biaxial", strain=8e-4, steps=4, rough=False)
+    n = scene.disc.npoints
+
+    with SerialCells(sample, n, NO_RELAX) as cells:
+        ref, _, _ = run_scene(scene, cells)
+    with SerialCells(sample, n, NO_RELAX, ckdir=tmp_path) as cells:
+        mat = DemMaterial(cells, scene.disc, default_params(), tangent="elastic")
+        first = FexdemSolver(scene.disc, mat, NEWTON, ckdir=tmp_path)
+        for rec in first.run_stage(scene.stage):
+            if len(first.records) == 2:
+                break                                   # the run is interrupted here
+    with SerialCells(sample, n, NO_RELAX, ckdir=tmp_path, resume=True) as cells:
+        mat = DemMaterial(cells, scene.disc, default_params(), tangent="elastic")
+        with pytest.raises(ValueError, match="is of stage 'biaxial', not 'other'"):
+            FexdemSolver.resume(scene.disc, mat, NEWTON, tmp_path,
+                                dataclasses.replace(scene.stage, name="other"))
+        solver, start = FexdemSolver.resume(scene.disc, mat, NEWTON, tmp_path, scene.stage)
+        assert start[0] == first.committed.t and len(solver.records) == 2
+        for _ in solver.run_stage(scene.stage, start):
+            pass
+    assert [r.t for r in solver.records] == [r.t for r in ref.records]
+    assert [r.residuals for r in solver.records] == [r.residuals for r in ref.records]
+    np.testing.assert_array_equal(solver.committed.stress, ref.committed.stress)
+    np.testing.assert_array_equal(solver.committed.u, ref.committed.u)

@@ -7,6 +7,8 @@ quadrature point, :mod:`contfab.fexdem.material`), then tiers 1 and 2
 Written into ``--out`` (atomically):
 
     <run>_curve.csv, <run>.pvd + vtu, <run>_curve.png ...   per run (contfab.fem.analysis)
+    cells/             the cells' and the FE field's checkpoints of the last converged step
+                       (FexdemSolver.resume)
     overlay.png        the load-displacement curves of the three runs
     report.json        settings, N per cell, cells, wall times, Newton figures, errors, costs
 
@@ -121,7 +123,7 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
     try:
         mat = DemMaterial(cells, disc, params, p_unit=p0, tangent=TANGENT,
                           tangent_tier=params.tier if params.tier in (1, 2) else 2)
-        solver = FexdemSolver(disc, mat, DEM_NEWTON)
+        solver = FexdemSolver(disc, mat, DEM_NEWTON, ckdir=out / "cells")
         stress0, state0 = solver.committed.stress.copy(), solver.committed.state.copy()
         res = analysis.run(solver, [scene.stage], scene.measure,
                            analysis.Outputs(out, f"{case}_dem", curve_axes=(xcol, ycol)), progress)

@@ -37,14 +37,18 @@ one last): :class:`FexdemSolver` enforces both.
 """
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 
-from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver
+from contfab.fem.solver import ConvergenceError, FieldState, NewtonOptions, Solver, StepRecord
 from contfab.fexdem.cell import CellOptions, advance_cell, measure_cell, start_cell
 from contfab.models import tiers
 from contfab.params import Params
 from contfab.tensors import isotropic_stiffness
 from dem import checkpoint
+from dem.fileio import atomic_path
 
 STATE_NAMES = ("gp", "c", "A", "Bc", "Bs")
 TANGENTS = ("model", "elastic", "dem")
@@ -147,22 +151,40 @@ class DemMaterial:
         self.failures = []
 
 
-class FexdemSolver(Solver):
-    """The FEM solver with DEM cells: commits the cells after every converged step."""
+FE_CHECKPOINT = "fe_state.npz"
+"""The FE field checkpoint of :class:`FexdemSolver` in its ``ckdir`` (beside the cells')."""
+_FIELDS = ("u", "stress", "state", "tangent", "spin_tangent", "status", "residual")
 
-    def __init__(self, disc, material: DemMaterial, options: NewtonOptions):
+
+class FexdemSolver(Solver):
+    """The FEM solver with DEM cells: commits the cells after every converged step.
+
+    With ``ckdir`` the committed FE field (the :class:`~contfab.fem.solver.FieldState`
+    arrays, the stage's t, its next step dt and start displacements, the step records)
+    is written to ``ckdir/fe_state.npz`` (atomic) after the cells' commit of every
+    converged step; :meth:`resume` rebuilds the solver from it, on cells made with
+    ``resume=True`` from the same ``ckdir``, and :meth:`run_stage` with the returned
+    ``start`` finishes the stage: the same numbers as without the interruption (a trial
+    is a function of the committed state and the increment only).
+    """
+
+    def __init__(self, disc, material: DemMaterial, options: NewtonOptions,
+                 ckdir: str | None = None):
         if options.line_search != 0 or options.spin_step != 0:
             raise ValueError(f"FE×DEM needs line_search = 0 and spin_step = 0 (each trial is a "
                              f"DEM run; the accepted one must be the last), got "
                              f"{options.line_search} and {options.spin_step}")
         stress0, state0 = material.initial()
         super().__init__(disc, material, stress0, state0, options)
+        self.ckdir = None if ckdir is None else Path(ckdir)
 
-    def run_stage(self, stage):
+    def run_stage(self, stage, start=None):
         """The solver's stage; a failure below the minimum step names the failed cells."""
         try:
-            for record in super().run_stage(stage):
+            for record in super().run_stage(stage, start):
                 self.material.commit(self.committed, len(self.records))
+                if self.ckdir is not None:
+                    self._checkpoint(record)
                 yield record
         except ConvergenceError as exc:
             cells = self.material.failures
@@ -171,3 +193,43 @@ class FexdemSolver(Solver):
             more = f" (and {len(cells) - 3} more)" if len(cells) > 3 else ""
             raise ConvergenceError(f"{exc}\nfailed DEM cells: " + "; ".join(cells[:3]) + more,
                                    exc.last, exc.attempts) from None
+
+    def _checkpoint(self, record) -> None:
+        o = self.options
+        dt_next = record.dt * o.grow if record.iterations <= o.easy_iter else record.dt
+        c = self.committed
+        records = [{"stage": r.stage, "t": r.t, "dt": r.dt, "residuals": r.residuals,
+                    "cuts": r.cuts, "extrapolated": r.extrapolated} for r in self.records]
+        with atomic_path(self.ckdir / FE_CHECKPOINT) as tmp:
+            with open(tmp, "wb") as f:
+                np.savez(f, fe_step=len(self.records), stage=c.stage, t=c.t, dt_next=dt_next,
+                         stage_start=self.stage_start, records=json.dumps(records),
+                         **{k: getattr(c, k) for k in _FIELDS})
+
+    @classmethod
+    def resume(cls, disc, material: DemMaterial, options: NewtonOptions, ckdir, stage):
+        """(solver, start) from ``ckdir``'s FE checkpoint for ``stage`` (class doc).
+
+        ``material``'s cells must have been made with ``resume=True`` from ``ckdir``;
+        cells whose checkpoint is of another step than the FE field's are an error.
+        """
+        path = Path(ckdir) / FE_CHECKPOINT
+        if not path.exists():
+            raise FileNotFoundError(f"no FE×DEM checkpoint {path}")
+        with np.load(path) as z:
+            data = {k: z[k] for k in z.files}
+        step, name = int(data["fe_step"]), str(data["stage"])
+        if name != stage.name:
+            raise ValueError(f"checkpoint {path} is of stage {name!r}, not {stage.name!r}")
+        cells = material.cells.steps()
+        if np.any(cells != step):
+            bad = np.flatnonzero(cells != step)
+            raise ValueError(f"checkpoint {path} is of step {step} but cells {bad[:5].tolist()} "
+                             f"are at steps {cells[bad[:5]].tolist()} (interrupted between the "
+                             f"cells' and the field's checkpoint)")
+        solver = cls(disc, material, options, ckdir)
+        solver.committed = FieldState(name, float(data["t"]),
+                                      **{k: np.array(data[k]) for k in _FIELDS})
+        solver.records = [StepRecord(tol=options.tol, **r) for r in json.loads(str(data["records"]))]
+        dt = min(float(data["dt_next"]), stage.dt_max)
+        return solver, (float(data["t"]), dt, data["stage_start"])
