@@ -238,6 +238,11 @@ def _add_fexdem(p: argparse.ArgumentParser) -> None:
                    help="prepared DEM sample (checkpoint of 'contfab dem prepare'); default: "
                         "prepare one into OUT/prepared.npz with --n discs, dense (mu_prep = 0)")
     p.add_argument("--n", type=int, default=150, help="discs per cell when preparing (default 150)")
+    p.add_argument("--kappa", type=float, default=1e3,
+                   help="contact stiffness kn/P0 when preparing (default 1e3, a kappa of the "
+                        "calibration campaign; mu = 0.5, I = 1e-3, radii uniform:0.2 as there)")
+    p.add_argument("--nx", type=int, default=None, help="elements across (default: the case's)")
+    p.add_argument("--ny", type=int, default=None, help="elements up (default: the case's)")
     p.add_argument("--params", default=None, help="model parameter TOML (default: shipped)")
     p.add_argument("--p0", type=float, default=1.0, help="confining pressure (stress unit per P0)")
     p.add_argument("--backend", choices=("serial", "process", "dask"), default="serial")
@@ -245,22 +250,30 @@ def _add_fexdem(p: argparse.ArgumentParser) -> None:
     p.add_argument("--address", default=None, help="dask scheduler address (default: local cluster)")
     p.add_argument("--steps", type=int, default=None, help="load steps (default: the case's)")
     p.add_argument("--strain", type=float, default=None, help="axial strain or shear strain")
+    p.add_argument("--relax", type=float, default=None, metavar="FORCE_TOL",
+                   help="hold every cell after its increment until the unbalanced force ratio "
+                        "< FORCE_TOL (default: no hold, the campaign's continuous I = 1e-3 paths)")
 
 
 def _run_fexdem(args) -> None:
     from pathlib import Path
 
-    from contfab.fexdem.compare import run
+    from contfab.fexdem.cell import CellOptions
+    from contfab.fexdem.compare import CELL_OPTIONS, run
     from contfab.params import default_params, load_params
     from dem.job import Settings, prepare_job
 
     sample = args.sample
     if sample is None:
-        sample = prepare_job(Settings(n=args.n, mu_prep=0.0), Path(args.out) / "prepared.npz")
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+        sample = prepare_job(Settings(n=args.n, kappa=args.kappa, mu_prep=0.0),
+                             Path(args.out) / "prepared.npz")
     params = default_params() if args.params is None else load_params(args.params)
-    extra = {k: v for k, v in (("steps", args.steps), ("strain", args.strain)) if v is not None}
+    extra = {k: v for k, v in (("steps", args.steps), ("strain", args.strain), ("nx", args.nx),
+                               ("ny", args.ny)) if v is not None}
+    options = CELL_OPTIONS if args.relax is None else CellOptions(force_tol=args.relax)
     report = run(args.case, str(sample), args.out, params, p0=args.p0, backend=args.backend,
-                 workers=args.workers, address=args.address, **extra)
+                 workers=args.workers, address=args.address, options=options, **extra)
     print(f"{args.case}: {report['cells']} DEM cells of {report['discs_per_cell']} discs, "
           f"{report['elements']} {report['element']} elements")
     for name, r in report["runs"].items():

@@ -331,17 +331,29 @@ class Solver:
                                     self._spin_tangent(stress0, state0, zero, np.zeros(n), res),
                                     res.status, disc.internal_force(stress0))
         self.records: list[StepRecord] = []
+        self.stage_start: np.ndarray | None = None
 
-    def run_stage(self, stage: Stage) -> Iterator[StepRecord]:
+    def run_stage(self, stage: Stage, start: tuple[float, float, np.ndarray] | None = None
+                  ) -> Iterator[StepRecord]:
         """Advance ``stage`` from t = 0 to 1, yielding a record after each committed step.
 
         Each step is tried from the extrapolated increment and then from the committed
         state (only the latter for a stage's first step, or without ``extrapolate``);
-        if neither converges the step is cut.
+        if neither converges the step is cut. ``start`` = (t, dt, ū_start) continues the
+        stage from the committed state at t with step dt (a resumed run), ū_start being
+        the constrained DOFs' displacements at the stage's start (:attr:`stage_start`).
         """
         system = ConstrainedSystem(self.disc, stage.fixed_dofs, stage.ties, stage.tie_factors)
-        u_start = self.committed.u[system.fixed].copy()
-        t, dt, attempts, cuts, rate = 0.0, stage.dt0, [], 0, None
+        if start is None:
+            t, dt, u_start = 0.0, stage.dt0, self.committed.u[system.fixed].copy()
+        else:
+            t, dt, u_start = float(start[0]), float(start[1]), np.array(start[2], dtype=float)
+            if not (0.0 <= t < 1.0 and 0.0 < dt <= 1.0 and u_start.shape == system.fixed.shape):
+                raise ValueError(f"resume start t = {t}, dt = {dt} (accepted t in [0, 1), dt in "
+                                 f"(0, 1]) with {u_start.shape} start displacements for "
+                                 f"{system.fixed.shape} constrained DOFs")
+        self.stage_start = u_start
+        attempts, cuts, rate = [], 0, None
         while t < 1.0 - 1e-12:
             dt = min(dt, 1.0 - t)
             starts = [None] if rate is None else [self.committed.u + dt * rate, None]

@@ -21,6 +21,16 @@ elastic energy < ``kinetic_tol``, checked every ``check_every`` steps up to
 ``relax_budget`` steps, else :class:`CellNotRelaxed`. ``force_tol = inf`` skips the
 relaxation. The result is the Love–Weber stress (units of P0, tension positive) and
 the state (c, A, Bc, Bs) (DESIGN §3).
+
+:func:`cell_tangent` is the cell's own incremental stiffness at an increment Δe, by
+one-sided differences of the same map from the same committed state:
+
+    D[:, j] = (σ(Δe + h_j e_j) - σ(Δe)) / h_j,   h_j = s_j · rel · max(max|Δe|, h_min),
+
+with s_j = sign(Δe_j) (+1 for 0): the probe continues the loading direction, so it
+stays in the same incremental branch as Δe (the DEM response is incrementally
+non-linear: loading and unloading stiffnesses differ). ``rel`` must keep h above the
+scale of the cells' stress noise (measured in docs/fexdem.md).
 """
 from __future__ import annotations
 
@@ -45,14 +55,25 @@ class CellNotRelaxed(ValueError):
     """A cell did not reach quasi-static equilibrium within its relaxation budget."""
 
 
+class IncrementTooLarge(ValueError):
+    """An increment beyond ``CellOptions.max_increment`` (a diverging Newton iterate)."""
+
+
 @dataclass(frozen=True)
 class CellOptions:
-    """Equilibrium thresholds and the relaxation budget (steps) of every cell."""
+    """Equilibrium thresholds, the relaxation budget (steps) and the largest increment.
+
+    ``max_increment`` bounds max|ΔL| of one increment: the cell's cost grows with it
+    (n = max|ΔL| / (I dt) steps) and an increment many times an FE step's strain comes
+    from a diverging Newton iterate (measured: one such iterate of the biaxial case ran
+    for minutes); it fails the point instead, and the solver cuts the step.
+    """
 
     force_tol: float = 1e-2
     kinetic_tol: float = 1e-4
     relax_budget: int = 20_000
     check_every: int = 250
+    max_increment: float = 1e-2
 
     def __post_init__(self):
         for name in ("force_tol", "kinetic_tol"):
@@ -61,6 +82,8 @@ class CellOptions:
                 raise ValueError(f"{name} = {v} out of range; accepted (0, inf] (inf: no relaxation)")
         if not (isinstance(self.relax_budget, int) and self.relax_budget >= 0):
             raise ValueError(f"relax_budget = {self.relax_budget} out of range; accepted integers >= 0")
+        if not (np.isfinite(self.max_increment) and self.max_increment > 0):
+            raise ValueError(f"max_increment = {self.max_increment} out of range; accepted (0, inf)")
         if not (isinstance(self.check_every, int) and self.check_every >= 1):
             raise ValueError(f"check_every = {self.check_every} out of range; accepted integers >= 1")
 
@@ -121,6 +144,24 @@ def relax(state: State, dyn: Dynamics, options: CellOptions) -> int:
     return steps
 
 
+def cell_tangent(committed: State, dyn: Dynamics, dstrain, dspin: float, stress: np.ndarray,
+                 options: CellOptions, rel: float, h_min: float = 1e-5) -> np.ndarray:
+    """(3, 3) ∂σ/∂(Δεxx, Δεyy, Δγxy) of the cell at ``dstrain`` (P0 per unit strain, module
+    doc); ``stress`` is σ(Δe) from ``committed``, which is not changed."""
+    if not (np.isfinite(rel) and rel > 0):
+        raise ValueError(f"tangent probe rel = {rel} out of range; accepted (0, inf)")
+    de = np.asarray(dstrain, dtype=float)
+    h = rel * max(float(np.max(np.abs(de))), h_min)
+    d = np.empty((3, 3))
+    for j in range(3):
+        hj = h if de[j] >= 0 else -h
+        probe = de.copy()
+        probe[j] += hj
+        res = advance_cell(committed.copy(), dyn, probe, dspin, options)
+        d[:, j] = (res.stress - stress) / hj
+    return d
+
+
 def start_cell(state: State, dyn: Dynamics) -> State:
     """A fresh clone's forces at its positions (as :meth:`dem.rve.PathRunner.start`)."""
     return evaluate_forces(state, dyn)
@@ -129,7 +170,11 @@ def start_cell(state: State, dyn: Dynamics) -> State:
 def advance_cell(state: State, dyn: Dynamics, dstrain, dspin: float,
                  options: CellOptions) -> CellResult:
     """Apply one increment to ``state`` in place, relax, measure (see the module doc)."""
-    stage = increment_stage(increment_gradient(dstrain, dspin), dyn)
+    dL = increment_gradient(dstrain, dspin)
+    if float(np.max(np.abs(dL))) > options.max_increment:
+        raise IncrementTooLarge(f"increment max|dL| = {np.max(np.abs(dL)):.3g} out of range; "
+                                f"accepted <= max_increment = {options.max_increment:g}")
+    stage = increment_stage(dL, dyn)
     steps0 = state.step
     if stage is not None:
         runner = PathRunner(Path(name="fexdem increment", stages=(stage,)), dyn, dyn.gdot_ref)

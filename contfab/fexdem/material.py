@@ -15,6 +15,10 @@ sends each cell its increment (:mod:`contfab.fexdem.cell`) through a cell backen
   regularization stiffness replaced by the cell's measured elastic modulus (the DEM
   cell is stiffer than the default λ; a tangent softer than the material makes the
   quasi-Newton iteration overshoot). Where that model fails, its elastic tangent.
+  ``tangent="dem"`` is the cells' own incremental stiffness at the trial increment
+  (:func:`contfab.fexdem.cell.cell_tangent`, one-sided differences with a probe of
+  ``probe`` max|Δe|: three more cell runs per point and iteration, i.e. Newton on the
+  DEM map itself); where a probe fails, the model's tangent.
   ``tangent="elastic"`` uses that elastic tangent everywhere (a stiff secant: the
   iteration contracts at ~1 - E_DEM/E per iteration). Measured on a dense 150-disc
   cell with the shipped (uncalibrated) parameters: the tier-1 tangent diverged at the
@@ -33,17 +37,24 @@ one last): :class:`FexdemSolver` enforces both.
 """
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 
-from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver
+from contfab.fem.solver import ConvergenceError, FieldState, NewtonOptions, Solver, StepRecord
 from contfab.fexdem.cell import CellOptions, advance_cell, measure_cell, start_cell
 from contfab.models import tiers
 from contfab.params import Params
 from contfab.tensors import isotropic_stiffness
 from dem import checkpoint
+from dem.fileio import atomic_path
 
 STATE_NAMES = ("gp", "c", "A", "Bc", "Bs")
-TANGENTS = ("model", "elastic")
+TANGENTS = ("model", "elastic", "dem")
+DEM_PROBE = 0.1
+"""Relative probe of ``tangent="dem"``: h = 0.1 max|Δe| (docs/fexdem.md: the cells' stress
+noise is ~1e-5 P0 against a probe response of ~1e-2 P0)."""
 PROBE_STRAIN = 1e-5
 """Strain of the one-off probe that measures a cell's elastic modulus."""
 
@@ -67,10 +78,13 @@ class DemMaterial:
     state_names = STATE_NAMES
 
     def __init__(self, cells, disc, params: Params, p_unit: float = 1.0, tangent_tier: int = 1,
-                 modulus: float | None = None, tangent: str = "model"):
+                 modulus: float | None = None, tangent: str = "model", probe: float = DEM_PROBE):
         if tangent not in TANGENTS:
             raise ValueError(f"tangent = {tangent!r} unknown; accepted {TANGENTS}")
         self.tangent = tangent
+        if not (np.isfinite(probe) and probe > 0):
+            raise ValueError(f"probe = {probe} out of range; accepted (0, inf)")
+        self.probe = float(probe)
         if not (np.isfinite(p_unit) and p_unit > 0):
             raise ValueError(f"p_unit = {p_unit} out of range; accepted (0, inf) (stress per P0)")
         if tangent_tier not in (1, 2):
@@ -107,12 +121,15 @@ class DemMaterial:
         state_n = np.ascontiguousarray(state_n, dtype=float)
         dstrain = np.ascontiguousarray(dstrain, dtype=float)
         dspin = np.ascontiguousarray(dspin, dtype=float)
-        out = self.cells.trial(dstrain, dspin)
+        out = self.cells.trial(dstrain, dspin, self.probe if self.tangent == "dem" else 0.0)
         model = tiers.update(self.tangent_tier, stress_n, state_n[:, self._cols], dstrain, dspin,
                              self.params)
-        tangent = model.tangent.copy() if self.tangent == "model" else np.tile(self._elastic, (len(dspin), 1, 1))
+        tangent = model.tangent.copy() if self.tangent != "elastic" else np.tile(self._elastic, (len(dspin), 1, 1))
         status = np.where(model.status < 0, 0, model.status).astype(np.int8)
         tangent[model.status < 0] = self._elastic
+        if self.tangent == "dem":
+            own = np.all(np.isfinite(out["tangent"]), axis=(1, 2))
+            tangent[own] = out["tangent"][own] * self.p_unit
         stress = out["stress"] * self.p_unit
         dgp = np.hypot(dstrain[:, 0] - dstrain[:, 1], dstrain[:, 2])
         state = np.column_stack([state_n[:, 0] + dgp, out["state"]])
@@ -134,22 +151,40 @@ class DemMaterial:
         self.failures = []
 
 
-class FexdemSolver(Solver):
-    """The FEM solver with DEM cells: commits the cells after every converged step."""
+FE_CHECKPOINT = "fe_state.npz"
+"""The FE field checkpoint of :class:`FexdemSolver` in its ``ckdir`` (beside the cells')."""
+_FIELDS = ("u", "stress", "state", "tangent", "spin_tangent", "status", "residual")
 
-    def __init__(self, disc, material: DemMaterial, options: NewtonOptions):
+
+class FexdemSolver(Solver):
+    """The FEM solver with DEM cells: commits the cells after every converged step.
+
+    With ``ckdir`` the committed FE field (the :class:`~contfab.fem.solver.FieldState`
+    arrays, the stage's t, its next step dt and start displacements, the step records)
+    is written to ``ckdir/fe_state.npz`` (atomic) after the cells' commit of every
+    converged step; :meth:`resume` rebuilds the solver from it, on cells made with
+    ``resume=True`` from the same ``ckdir``, and :meth:`run_stage` with the returned
+    ``start`` finishes the stage: the same numbers as without the interruption (a trial
+    is a function of the committed state and the increment only).
+    """
+
+    def __init__(self, disc, material: DemMaterial, options: NewtonOptions,
+                 ckdir: str | None = None):
         if options.line_search != 0 or options.spin_step != 0:
             raise ValueError(f"FE×DEM needs line_search = 0 and spin_step = 0 (each trial is a "
                              f"DEM run; the accepted one must be the last), got "
                              f"{options.line_search} and {options.spin_step}")
         stress0, state0 = material.initial()
         super().__init__(disc, material, stress0, state0, options)
+        self.ckdir = None if ckdir is None else Path(ckdir)
 
-    def run_stage(self, stage):
+    def run_stage(self, stage, start=None):
         """The solver's stage; a failure below the minimum step names the failed cells."""
         try:
-            for record in super().run_stage(stage):
+            for record in super().run_stage(stage, start):
                 self.material.commit(self.committed, len(self.records))
+                if self.ckdir is not None:
+                    self._checkpoint(record)
                 yield record
         except ConvergenceError as exc:
             cells = self.material.failures
@@ -158,3 +193,43 @@ class FexdemSolver(Solver):
             more = f" (and {len(cells) - 3} more)" if len(cells) > 3 else ""
             raise ConvergenceError(f"{exc}\nfailed DEM cells: " + "; ".join(cells[:3]) + more,
                                    exc.last, exc.attempts) from None
+
+    def _checkpoint(self, record) -> None:
+        o = self.options
+        dt_next = record.dt * o.grow if record.iterations <= o.easy_iter else record.dt
+        c = self.committed
+        records = [{"stage": r.stage, "t": r.t, "dt": r.dt, "residuals": r.residuals,
+                    "cuts": r.cuts, "extrapolated": r.extrapolated} for r in self.records]
+        with atomic_path(self.ckdir / FE_CHECKPOINT) as tmp:
+            with open(tmp, "wb") as f:
+                np.savez(f, fe_step=len(self.records), stage=c.stage, t=c.t, dt_next=dt_next,
+                         stage_start=self.stage_start, records=json.dumps(records),
+                         **{k: getattr(c, k) for k in _FIELDS})
+
+    @classmethod
+    def resume(cls, disc, material: DemMaterial, options: NewtonOptions, ckdir, stage):
+        """(solver, start) from ``ckdir``'s FE checkpoint for ``stage`` (class doc).
+
+        ``material``'s cells must have been made with ``resume=True`` from ``ckdir``;
+        cells whose checkpoint is of another step than the FE field's are an error.
+        """
+        path = Path(ckdir) / FE_CHECKPOINT
+        if not path.exists():
+            raise FileNotFoundError(f"no FE×DEM checkpoint {path}")
+        with np.load(path) as z:
+            data = {k: z[k] for k in z.files}
+        step, name = int(data["fe_step"]), str(data["stage"])
+        if name != stage.name:
+            raise ValueError(f"checkpoint {path} is of stage {name!r}, not {stage.name!r}")
+        cells = material.cells.steps()
+        if np.any(cells != step):
+            bad = np.flatnonzero(cells != step)
+            raise ValueError(f"checkpoint {path} is of step {step} but cells {bad[:5].tolist()} "
+                             f"are at steps {cells[bad[:5]].tolist()} (interrupted between the "
+                             f"cells' and the field's checkpoint)")
+        solver = cls(disc, material, options, ckdir)
+        solver.committed = FieldState(name, float(data["t"]),
+                                      **{k: np.array(data[k]) for k in _FIELDS})
+        solver.records = [StepRecord(tol=options.tol, **r) for r in json.loads(str(data["records"]))]
+        dt = min(float(data["dt_next"]), stage.dt_max)
+        return solver, (float(data["t"]), dt, data["stage_start"])

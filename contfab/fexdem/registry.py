@@ -12,6 +12,10 @@ arrays never travel between steps: only strain increments go in and stresses com
   tagged with the step number. A registry made with ``resume=True`` starts from those
   files, so a lost worker's cells restart from their last converged step.
 
+With ``probe`` > 0, :meth:`trial` also returns each cell's own tangent at its increment
+(:func:`~contfab.fexdem.cell.cell_tangent`, three more runs per cell; NaN where a probe
+fails, the caller then falls back to another tangent).
+
 A cell that fails (no equilibrium within its budget, a DEM divergence) reports its
 message instead of a stress; the caller turns it into a failed point.
 """
@@ -23,7 +27,8 @@ import numpy as np
 
 from dem import checkpoint
 from dem.integrator import DivergenceError
-from contfab.fexdem.cell import CELL_STATE, CellNotRelaxed, CellOptions, advance_cell, start_cell
+from contfab.fexdem.cell import (CELL_STATE, CellNotRelaxed, CellOptions, IncrementTooLarge,
+                                 advance_cell, cell_tangent, start_cell)
 
 
 def cell_file(ckdir: str | Path, cell: int) -> Path:
@@ -53,21 +58,23 @@ class CellRegistry:
         """The converged FE step each cell's committed state belongs to."""
         return dict(self.step)
 
-    def trial(self, ids, dstrain: np.ndarray, dspin: np.ndarray) -> dict:
+    def trial(self, ids, dstrain: np.ndarray, dspin: np.ndarray, probe: float = 0.0) -> dict:
         """Run one increment per cell on a copy of its committed state.
 
         Returns arrays over ``ids``: ``stress`` (k, 3) in P0, ``state`` (k, 4) (c, A, Bc,
-        Bs), ``steps`` (k, 2) (strain, relaxation steps), ``ok`` (k,) bool, and
-        ``errors`` {position in ids: message}.
+        Bs), ``steps`` (k, 2) (strain, relaxation steps), ``ok`` (k,) bool, ``errors``
+        {position in ids: message}, and ``tangent`` (k, 3, 3) in P0 (zeros unless
+        ``probe`` > 0, the relative probe of the cells' tangent; module doc).
         """
         k = len(ids)
         out = {"stress": np.zeros((k, 3)), "state": np.zeros((k, len(CELL_STATE))),
-               "steps": np.zeros((k, 2), np.int64), "ok": np.ones(k, bool), "errors": {}}
+               "steps": np.zeros((k, 2), np.int64), "ok": np.ones(k, bool), "errors": {},
+               "tangent": np.zeros((k, 3, 3))}
         for j, i in enumerate(ids):
             st = self.committed[int(i)].copy()
             try:
                 res = advance_cell(st, self.dyn, dstrain[j], float(dspin[j]), self.options)
-            except (CellNotRelaxed, DivergenceError) as exc:
+            except (CellNotRelaxed, IncrementTooLarge, DivergenceError) as exc:
                 out["ok"][j] = False
                 out["errors"][j] = str(exc)
                 self.trials.pop(int(i), None)
@@ -75,6 +82,12 @@ class CellRegistry:
             self.trials[int(i)] = st
             out["stress"][j], out["state"][j] = res.stress, res.state
             out["steps"][j] = (res.strain_steps, res.relax_steps)
+            if probe > 0:
+                try:
+                    out["tangent"][j] = cell_tangent(self.committed[int(i)], self.dyn, dstrain[j],
+                                                     float(dspin[j]), res.stress, self.options, probe)
+                except (CellNotRelaxed, IncrementTooLarge, DivergenceError):
+                    out["tangent"][j] = np.nan
         return out
 
     def commit(self, fe_step: int) -> None:
