@@ -34,6 +34,7 @@ STUDIES = {
     "dem_stiffness": "contfab.tradeoff.dem_studies:stiffness_study",
     "fem_footing_nq": "contfab.tradeoff.fem_studies:footing_nq_study",
     "fem_footing_ngamma": "contfab.tradeoff.fem_studies:footing_ngamma_study",
+    "fem_band": "contfab.tradeoff.fem_studies:band_study",
 }
 """Study name -> ``module:function(fast) -> Study``."""
 

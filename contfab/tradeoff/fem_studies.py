@@ -9,10 +9,17 @@ parameter file's φ (weightless soil with a surcharge), N_γ against Martin's (2
 The model tier is not a knob here: the exact factors hold for the constant-φ cone (tier 0);
 tiers 1 and 2 carry φ(c) and the fabric, for which no closed form exists (their cost per
 point is measured by ``contfab bench model``).
+
+The biaxial shear band (``cases/biaxial_shear_band.py``, dense tier 1, rough platens) over
+element × mesh level: two errors, the peak σ1/σ3 against the closed form
+(1 + sin φ0)/(1 − sin φ0) at the initial density, and the band angle against Arthur's
+45° + (φ0 + ψ0)/4 (the middle of the Roscoe–Coulomb range), relative. The post-peak
+softening is not an error measure: without an internal length it depends on the mesh.
 """
 from __future__ import annotations
 
 import functools
+import math
 
 from contfab.cases import load_case
 from contfab.params import default_params, default_params_digest
@@ -78,3 +85,53 @@ def footing_nq_study(fast: bool) -> Study:
 
 def footing_ngamma_study(fast: bool) -> Study:
     return _study("Ngamma", fast)
+
+
+BAND_DEFAULT = {"element": "P2", "level": 2}
+"""The band case's defaults (level 1 puts the band 6° off: docs/fem_validation.md §3)."""
+
+
+def run_band_point(study: Study, point: dict) -> dict:
+    """One biaxial shear-band analysis at the point's element and level (the case's push)."""
+    case = load_case("biaxial_shear_band")
+    params = default_params()
+    _compiled_band()
+    with Clock() as clock:
+        r = case.solve(params, point["element"], point["level"], 0.03, 0.04, None, False)
+    values = {k: float(r[k]) for k in ("peak", "angle", "phi0", "psi0", "end")}
+    values["dofs"] = int(r["dofs"])
+    return {"values": values, "wall_s": clock.wall, "cpu_s": clock.cpu, "cost": clock.cpu}
+
+
+@functools.cache
+def _compiled_band() -> None:
+    load_case("biaxial_shear_band").solve(default_params(), "P1", 1, 0.03, 0.002, None, False)
+
+
+def evaluate_band(study, points, results):
+    rows = []
+    for p, r in zip(points, results):
+        v = r["values"]
+        s = math.sin(math.radians(v["phi0"]))
+        arthur = 45.0 + (v["phi0"] + v["psi0"]) / 4.0
+        rows.append({"knobs": {k: p[k] for k in study.knobs},
+                     **{k: r[k] for k in ("wall_s", "cpu_s", "cost")},
+                     "errors": {"peak": abs(v["peak"] * (1 - s) / (1 + s) - 1.0),
+                                "angle": abs(v["angle"] / arthur - 1.0)}})
+    notes = {"band angles (deg)": [r["values"]["angle"] for r in results],
+             "peaks sigma1/sigma3": [r["values"]["peak"] for r in results],
+             "DOFs per point": [r["values"]["dofs"] for r in results]}
+    return rows, notes
+
+
+def band_study(fast: bool) -> Study:
+    grid = [("P2", 1), ("P2", 2)] if fast else [(e, lv) for e in ("P2", "Q9") for lv in (1, 2, 3)]
+    return Study(
+        name="fem_band", knobs=("element", "level"),
+        description="biaxial shear band (dense tier 1): element × mesh level against the peak "
+                    "closed form and Arthur's band angle",
+        points=tuple({"element": e, "level": lv} for e, lv in grid),
+        run_point=run_band_point, evaluate=evaluate_band, default=BAND_DEFAULT,
+        quantities=("peak", "angle"), cost_unit="CPU s per analysis",
+        error_meaning="|peak / closed form - 1| and |angle / Arthur - 1|",
+        settings={"dense": 0.03, "strain": 0.04, "parameters": default_params_digest()})
