@@ -183,7 +183,7 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
     wall = time.perf_counter() - t0
     values = result.column(factor)
     tail = values[result.column("t") >= 0.8 * result.column("t")[-1]]
-    return {"phi": phi_deg, "psi": psi_deg, "reference": reference, "computed": values[-1],
+    return {"phi": phi_deg, "psi": psi_deg, "reference": reference, "computed": float(values[-1]),
             "peak": float(values.max()), "plateau_drift": float(tail[-1] / tail[0] - 1.0),
             "dofs": disc.ndofs, "element": element, "level": level, "wall_s": wall,
             "steps": len(result.iterations),
