@@ -64,18 +64,17 @@ tier 0 (no state) c0 exp(-ε_v) (empty without an ``[initial]`` section).
 """
 from __future__ import annotations
 
-import contextlib
 import math
 import time
 from dataclasses import dataclass, field
 from typing import Mapping
 
-import numba
 import numpy as np
 
 from dem.conventions import admissibility_margin, fabric_polar, pressure
 from dem.history import HISTORY_COLUMNS, history_row
 from dem.paths import COMPONENTS, STRESS_INDEX, Path, Stage, load_path
+from dem.threads import numba_threads
 from contfab.models import tiers
 from contfab.params import Params, default_params
 
@@ -275,17 +274,6 @@ class PointResult:
 
 
 # --------------------------------------------------------------------------- the path runner
-
-@contextlib.contextmanager
-def _one_thread():
-    """Run single-threaded: one point never pays for waking the thread pool."""
-    threads = numba.get_num_threads()
-    numba.set_num_threads(1)
-    try:
-        yield
-    finally:
-        numba.set_num_threads(threads)
-
 
 @dataclass
 class _Point:
@@ -556,7 +544,7 @@ def run_path(path: Path | str, params: Params | None = None, tier: int | None = 
     t0 = time.perf_counter()
     pt = _Point(stress0, state0)
     try:
-        with _one_thread():
+        with numba_threads(1):  # one point never pays for waking the thread pool
             pt = runner.run(pt)
     except IntegrationError as exc:
         exc.partial = runner.result(pt, time.perf_counter() - t0) if runner.rows else None

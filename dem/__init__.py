@@ -9,7 +9,7 @@ import os as _os
 from dem.numba_cache import configure as _configure_numba_cache
 
 _configure_numba_cache()
-# Parallel kernels synchronize several times per DEM step. With GNU OpenMP's default
-# spinning barrier, a thread descheduled on a busy machine stalls every step (measured on
-# 2 shared cores: 2 threads 0.8e6 particle-steps/s spinning vs 4.4e6 passive, 1 thread 8.4e6).
+# Waiting OpenMP threads sleep instead of spinning: a spinning barrier with a descheduled
+# thread stalls each join (measured on 2 shared cores: 2 threads 0.8e6 particle-steps/s
+# spinning vs 4.4e6 passive). The DEM itself runs on one thread unless asked (dem.threads).
 _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")

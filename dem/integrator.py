@@ -32,7 +32,8 @@ between: a step costs two parallel passes, one over pairs and one over discs.
 
 Kernels run with numba ``prange`` over fixed chunks of CHUNK discs or pairs; every sum is
 formed per chunk and the chunk sums are added in chunk order, so the results are
-bitwise identical for any number of threads (tested).
+bitwise identical for any number of threads (tested). How many threads: one unless asked
+(:mod:`dem.threads`, where the measurement that says so is).
 
 Time step: dt = f sqrt(m_min/kn). Velocity Verlet is stable for ω_max dt < 2; a disc
 with at most Z_MAX contacts, each coupling translation and rotation (a disc's tangential
@@ -49,6 +50,7 @@ import numpy as np
 from numba import njit, prange
 
 from dem import neighbours
+from dem.threads import get_threads, numba_threads
 from dem.contact_law import ContactLaw, contact_response, damping_coefficient
 from dem.periodic_cell import cayley_det, cayley_step
 from dem.servo import L_MAX_FACTOR, servo_rate, time_constant
@@ -458,6 +460,11 @@ def _pair_constants(state: State, dyn: Dynamics) -> np.ndarray:
 
 def evaluate_forces(state: State, dyn: Dynamics) -> State:
     """Forces, torques, stress and stiffness at the current state (ξ histories untouched)."""
+    with numba_threads(get_threads()):
+        return _evaluate_forces(state, dyn)
+
+
+def _evaluate_forces(state: State, dyn: Dynamics) -> State:
     kn, kt, _, mu, mu_roll = dyn.law.kernel_params()
     ps = pair_forces(state.h, state.L, state.s, state.v, state.omega, state.radius,
                      _pair_constants(state, dyn), state.pair_ij, state.pair_shift,
@@ -476,9 +483,14 @@ def advance(state: State, dyn: Dynamics, nsteps: int, control: Control | None = 
 
     Neighbour lists are rebuilt whenever the validity check asks for it; the rebuild
     schedule therefore depends on the state only, so a run restarted from a checkpoint
-    takes exactly the same steps.
+    takes exactly the same steps. The parallel passes run on :func:`dem.threads.get_threads`
+    threads, whatever numba's process-wide count is.
     """
-    control = control or Control.fixed()
+    with numba_threads(get_threads()):
+        return _advance(state, dyn, nsteps, control or Control.fixed())
+
+
+def _advance(state: State, dyn: Dynamics, nsteps: int, control: Control) -> State:
     kn, kt, _, mu, mu_roll = dyn.law.kernel_params()
     r_max = float(state.radius.max())
     done_total, mid = 0, False

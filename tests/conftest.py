@@ -59,8 +59,9 @@ def fabric_terms(prm, c, a, bc, bs):
 # --------------------------------------------------------------- DEM fixtures
 
 
-# The machine is shared: an OpenMP barrier with a descheduled second thread costs
-# milliseconds per step. Tests run single-threaded; the parallel test sets its own count.
+# The machine is shared: waking a second thread costs more than it gains at the sizes
+# tested here (dem/threads.py). The DEM runs on its own count (1); the model kernels of
+# large point sets follow numba's, which the tests keep at 1 (parallel tests set theirs).
 numba.set_num_threads(1)
 
 

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from conftest import make_dynamics
+from dem import integrator, threads
 from dem.contact_law import ContactLaw
 from dem.integrator import Control, TimeStepError, advance, evaluate_forces, stable_fraction, time_step
 from dem.measure import energies, love_weber
@@ -55,19 +56,47 @@ def test_kernel_stress_is_the_love_weber_stress(packing_frictional):
 
 
 def test_parallel_and_serial_runs_are_bitwise_equal(packing_frictional):
-    threads = numba.config.NUMBA_NUM_THREADS
     results = []
-    for nt in (1, threads):
-        numba.set_num_threads(nt)
+    for nt in (1, numba.config.NUMBA_NUM_THREADS):
         st = packing_frictional.copy()
         dyn = make_dynamics(st, gdot=1e-2)
         ctl = Control(np.array([0.0, -1e-2, 0.5e-2, 0.0]), np.array([True, False, False, False]),
                       np.array([-1.0, -1.0, 0.0]), np.array([-1.0, -1.0, 0.0]))
-        results.append(advance(st, dyn, 3000, ctl))
-    numba.set_num_threads(threads)
+        with threads.using(nt):
+            results.append(advance(st, dyn, 3000, ctl))
     a, b = results
     for name, arr in a.arrays().items():
         assert np.array_equal(arr, b.arrays()[name]), name
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs two numba threads")
+def test_the_dem_runs_on_its_own_thread_count_and_restores_numbas(packing_frictional,
+                                                                    monkeypatch):
+    seen = []
+
+    def kernel(nsteps, *args):
+        seen.append(numba.get_num_threads())
+        return nsteps, integrator.OK
+
+    monkeypatch.setattr(integrator, "advance_kernel", kernel)
+    before = numba.get_num_threads()
+    numba.set_num_threads(2)
+    try:
+        st = packing_frictional.copy()
+        advance(st, make_dynamics(st), 10)
+        with threads.using(2):
+            advance(st, make_dynamics(st), 10)
+        assert numba.get_num_threads() == 2
+    finally:
+        numba.set_num_threads(before)
+    assert seen == [1, 2]
+    assert threads.get_threads() == 1
+
+
+@pytest.mark.parametrize("n", [0, -1, 2.5, 10_000])
+def test_a_bad_dem_thread_count_is_refused_with_the_range(n):
+    with pytest.raises(ValueError, match=r"DEM threads .* out of range; accepted 1 to \d+"):
+        threads.set_threads(n)
 
 
 def test_time_step_above_stability_limit_is_refused():

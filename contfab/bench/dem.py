@@ -77,6 +77,7 @@ def prepared(system: dict):
 
 
 def run(args) -> dict:
+    from dem import threads as dem_threads
     from dem.integrator import Control, advance
     from dem.paths import load_path
     from dem.rve import PathRunner
@@ -90,12 +91,12 @@ def run(args) -> dict:
     n = state0.n
 
     def rate(threads: int, clock=time.perf_counter) -> float:
-        numba.set_num_threads(threads)
         st = state0.copy()
         PathRunner(load_path(system["path"]), dyn, dyn.gdot_ref).start(st)
         ctl = Control(stage.rate_vector * dyn.gdot_ref, stage.stress_controlled,
                       stage.stress_target(st.stress, 0.0), stage.stress_target(st.stress, 0.0))
-        return timed_rate(lambda k: advance(st, dyn, k, ctl), n, steps, args.repeats, clock)
+        with dem_threads.using(threads):
+            return timed_rate(lambda k: advance(st, dyn, k, ctl), n, steps, args.repeats, clock)
 
     all_threads = numba.config.NUMBA_NUM_THREADS
     rate1 = rate(1)
@@ -104,7 +105,6 @@ def run(args) -> dict:
     rate_n = rate(all_threads)
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
-    numba.set_num_threads(all_threads)
     out = {"particles": n, "steps_per_timing": steps,
            "particle_steps_per_s_1_thread": rate1,
            "particle_steps_per_cpu_s_1_thread": rate1_cpu,

@@ -33,9 +33,9 @@ from __future__ import annotations
 
 import time
 
-import numba
 import numpy as np
 
+from dem.threads import numba_threads
 from contfab.bench import median_seconds
 from contfab.models import tiers
 from contfab.params import default_params
@@ -83,10 +83,8 @@ def yielding_points(params, tier: int, n: int, seed: int = 0, anisotropic: bool 
 def run(args) -> dict:
     repeats = getattr(args, "repeats", 5)
     n = getattr(args, "points", POINTS)
-    threads = numba.get_num_threads()
-    numba.set_num_threads(1)
     figures = {"points": n}
-    try:
+    with numba_threads(1):
         for name, (tier, anisotropic) in BENCH_CASES.items():
             params = default_params()
             stress, state, dstrain, dspin = yielding_points(params, tier, n,
@@ -111,6 +109,4 @@ def run(args) -> dict:
             figures[f"{name}_plastic_fraction"] = float(np.mean(out.status == 1))
             figures[f"{name}_updates_per_s_wall"] = n / median_seconds(model, repeats=repeats)
         figures["numpy_elastic_updates_per_s_per_core"] = n / t_elastic
-    finally:
-        numba.set_num_threads(threads)
     return figures

@@ -25,9 +25,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
+from dem.threads import numba_threads
 from contfab.models import cone, fabric_model
 from contfab.params import Params, ParamError
 
@@ -143,13 +143,9 @@ def update(tier: int, stress_n, state_n, dstrain, dspin, params: Params,
                          f"expected {n} points of tier {tier}")
     args = (stress_n, state_n, dstrain, dspin, params.array(tier),
             out.stress, out.state, out.tangent, out.status)
-    threads = numba.get_num_threads()
-    if n < PARALLEL_MIN_POINTS and threads > 1:
-        numba.set_num_threads(1)
-        try:
+    if n < PARALLEL_MIN_POINTS:
+        with numba_threads(1):
             kernel(*args)
-        finally:
-            numba.set_num_threads(threads)
     else:
         kernel(*args)
     return out
