@@ -180,14 +180,17 @@ def test_fem_band_fast_peak_and_angle_within_the_case_bounds(tmp_path):
 def test_tier_studies_fast_tier1_carries_the_volume_change(tmp_path):
     """Both tier studies against an N = 100 DEM reference (one dense sample): tier 0
     (constant ψ, no c) misses ε_v by 3-5 % strain, tiers 1 and 2 (ψ(c)) come within 1.5 %
-    and halve the R/P error on the monotonic path, at more cost per increment; after the
-    reversal no tier follows the DEM's transient (RP_transient ~0.07 for all: issue 4)."""
+    and halve the R/P error on the monotonic path; after the reversal no tier follows the
+    DEM's transient (RP_transient ~0.07 for all: issue 4). The cost per increment is
+    reported, not ordered here: at --fast sizes it is the driver's Python overhead
+    (~200 CPU µs per increment for every tier; tier 2 measured below tier 1 once, 190 vs
+    234), and speed belongs to `contfab bench model`."""
     run(["tier_biaxial", "tier_reversal"], tmp_path / "tiers", fast=True, progress=False)
     for name in ("tier_biaxial", "tier_reversal"):
         t = _table(tmp_path / "tiers", name)
         assert list(t["tier"]) == [0, 1, 2]
         assert t["error_eps_v"][0] > 0.02, name
         assert t["error_eps_v"][1] < 0.015 and t["error_eps_v"][2] < 0.015, name
-        assert t["cost"][2] > t["cost"][1], name
+        assert np.all(np.isfinite(t["cost"]) & (t["cost"] > 0)), name
     bx = _table(tmp_path / "tiers", "tier_biaxial")
     assert bx["error_RP"][1] < 0.6 * bx["error_RP"][0] and bx["error_RP"][2] < 0.6 * bx["error_RP"][0]
