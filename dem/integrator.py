@@ -162,7 +162,11 @@ def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair
     Writes pair_f[q] = (fx, fy, torque on i, torque on j) with (fx, fy) the force on i,
     updates the histories (by dt; dt = 0 evaluates without advancing ξ), and sums
     f⊗l (stress · V), the affine stiffness · V of each L component, and the dissipation.
-    ``pair_const`` is :func:`pair_constants` of the list.
+    ``pair_const`` is :func:`pair_constants` of the list. A contact that opened during
+    the step (listed with δ_old > 0, now δ <= 0) is booked like every step, as the
+    trapezoidal work of its last forces over this step's motion, ½ fn_old (δ - δ_old) on
+    the normal, ½ ft_old vt dt and ½ Mr_old (ωj - ωi) dt on the tangential and rolling
+    springs, plus the energy they stored (lost with the contact).
     """
     nchunk = (n_pairs + CHUNK - 1) // CHUNK
     part = np.zeros((max(nchunk, 1), NPAIR_SUMS))
@@ -179,16 +183,8 @@ def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair
             ri, rj = radius[i], radius[j]
             rs = ri + rj
             d2 = lx * lx + ly * ly
-            if d2 >= rs * rs:
-                if pair_hist[q, 3] != 0.0:
-                    # the contact opened: its stored tangential energy is lost, and the
-                    # damping force does its work down to δ = 0
-                    a7 -= 0.5 * pair_hist[q, 2] * pair_hist[q, 3]
-                    a8 += 0.5 * kt * pair_hist[q, 0] ** 2
-                    reff = pair_const[q, 1]
-                    a9 += 0.5 * kt * reff * reff * pair_hist[q, 1] ** 2
-                    for a in range(4):
-                        pair_hist[q, a] = 0.0
+            touching = d2 < rs * rs
+            if not touching and pair_hist[q, 3] == 0.0:
                 pair_f[q, 0] = 0.0
                 pair_f[q, 1] = 0.0
                 pair_f[q, 2] = 0.0
@@ -205,6 +201,22 @@ def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair
             wy = L[1, 0] * lx + L[1, 1] * ly + v[j, 1] - v[i, 1] - spin * ty
             vn = wx * nx + wy * ny
             vt = wx * tx + wy * ty
+            if not touching:
+                # the contact opened during this step: the forces of the last step did
+                # their work over this step's motion (to the overlap δ <= 0 now), and the
+                # energy stored in the springs is lost
+                d0, fd0, x0, r0 = pair_hist[q, 3], pair_hist[q, 2], pair_hist[q, 0], pair_hist[q, 1]
+                kr = kt * pair_const[q, 1] * pair_const[q, 1]
+                a7 += 0.5 * (kn * d0 + fd0) * (delta - d0) + 0.5 * kn * d0 * d0
+                a8 += 0.5 * kt * x0 * (vt * dt + x0)
+                a9 += 0.5 * kr * r0 * ((omega[j] - omega[i]) * dt + r0)
+                for a in range(4):
+                    pair_hist[q, a] = 0.0
+                pair_f[q, 0] = 0.0
+                pair_f[q, 1] = 0.0
+                pair_f[q, 2] = 0.0
+                pair_f[q, 3] = 0.0
+                continue
             fn, ft, mr, xi, xr, fd, dd, dfr, drl = contact_response(
                 delta, pair_hist[q, 3], pair_hist[q, 2], vn, vt, omega[j] - omega[i],
                 pair_hist[q, 0], pair_hist[q, 1], pair_const[q, 0], pair_const[q, 1], kn, kt,
