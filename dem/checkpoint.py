@@ -84,6 +84,7 @@ def load(file: str | os.PathLike) -> tuple[State, Dynamics, PathRun | None, dict
         mv = kw["mass"][:, None] * kw["v"]
         kin = np.array([mv[:, 0] @ kw["v"][:, 0], mv[:, 1] @ kw["v"][:, 1], mv[:, 0] @ kw["v"][:, 1]])
         kw["stress_contact"] = kw["stress"] + kin / vol
+    kw.setdefault("stress_damping", np.zeros(3))  # written before the servo split it off
     state = State(**kw, n_pairs=meta["n_pairs"], step=meta["step"], rng_state=meta["rng_state"],
                   rebuilds=meta["rebuilds"])
     run = None

@@ -151,7 +151,7 @@ def pair_constants(pair_ij, n_pairs, radius, mass, kn, beta):
     return out
 
 
-NPAIR_SUMS = 10  # sxx, syy, sxy, Mxx, Myy, Mxy, Myx, d_damp, d_fric, d_roll
+NPAIR_SUMS = 13  # sxx, syy, sxy, Mxx, Myy, Mxy, Myx, d_damp, d_fric, d_roll, dashpot sxx, syy, sxy
 
 
 @njit(cache=True, parallel=True, fastmath=FASTMATH)
@@ -161,7 +161,9 @@ def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair
 
     Writes pair_f[q] = (fx, fy, torque on i, torque on j) with (fx, fy) the force on i,
     updates the histories (by dt; dt = 0 evaluates without advancing ξ), and sums
-    f⊗l (stress · V), the affine stiffness · V of each L component, and the dissipation.
+    f⊗l (stress · V), the affine stiffness · V of each L component, the dissipation, and
+    the dashpot part of the stress · V, Σ (-fd n)⊗l (fd = fn - kn δ, the normal damping
+    force; for the servo, :mod:`dem.servo`).
     ``pair_const`` is :func:`pair_constants` of the list. A contact that opened during
     the step (listed with δ_old > 0, now δ <= 0) is booked like every step, as the
     trapezoidal work of its last forces over this step's motion, ½ fn_old (δ - δ_old) on
@@ -172,7 +174,7 @@ def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair
     part = np.zeros((max(nchunk, 1), NPAIR_SUMS))
     h00, h01, h10, h11 = h[0, 0], h[0, 1], h[1, 0], h[1, 1]
     for c in prange(nchunk):
-        a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = a8 = a9 = 0.0
+        a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = a8 = a9 = a10 = a11 = a12 = 0.0
         for q in range(c * CHUNK, min(n_pairs, (c + 1) * CHUNK)):
             # unsigned: indexing without the negative-index wraparound test
             i, j = np.uint64(pair_ij[q, 0]), np.uint64(pair_ij[q, 1])
@@ -243,8 +245,12 @@ def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair
             a7 += dd
             a8 += dfr
             a9 += drl
+            a10 -= fd * nx * lx
+            a11 -= fd * ny * ly
+            a12 -= 0.5 * fd * (nx * ly + ny * lx)
         part[c, 0], part[c, 1], part[c, 2], part[c, 3], part[c, 4] = a0, a1, a2, a3, a4
         part[c, 5], part[c, 6], part[c, 7], part[c, 8], part[c, 9] = a5, a6, a7, a8, a9
+        part[c, 10], part[c, 11], part[c, 12] = a10, a11, a12
     out = np.zeros(NPAIR_SUMS)
     for c in range(nchunk):
         out += part[c]
@@ -335,35 +341,39 @@ def disc_pass(pair_f, inc_ptr, inc, force, torque, v, omega, s, s_ref, mass, inv
 
 
 @njit(cache=True)
-def _contact_stress(h, ps, stress_c, stiff):
-    """σ^c = (1/V) Σ f⊗l and the affine stiffness (1/V) of each L component."""
+def _contact_stress(h, ps, stress_c, stress_d, stiff):
+    """σ^c = (1/V) Σ f⊗l, its dashpot part σ^d, and the affine stiffness (1/V) of each L
+    component."""
     vol = h[0, 0] * h[1, 1] - h[0, 1] * h[1, 0]
     for a in range(3):
         stress_c[a] = ps[a] / vol
+        stress_d[a] = ps[10 + a] / vol
     for a in range(4):
         stiff[a] = ps[3 + a] / vol
 
 
 @njit(cache=True)
-def _servo(L, l_int, stress_c, stiff, rate, controlled, target, dt, tau, l_max):
-    """Step 1: set L (xx, yy, xy, yx -> L[0,0], L[1,1], L[0,1], L[1,0])."""
+def _servo(L, l_int, stress_c, stress_d, stiff, rate, controlled, target, dt, tau, l_max):
+    """Step 1: set L (xx, yy, xy, yx -> L[0,0], L[1,1], L[0,1], L[1,0]); the proportional
+    term sees σ^c - σ^d, the integral σ^c (:mod:`dem.servo`)."""
     for a in range(4):
         r, cc = (0, 0) if a == 0 else (1, 1) if a == 1 else (0, 1) if a == 2 else (1, 0)
         if controlled[a]:
             k = a if a < 2 else 2
-            L[r, cc], l_int[a] = servo_rate(target[k] - stress_c[k], stiff[a], l_int[a], dt, tau,
-                                            l_max)
+            L[r, cc], l_int[a] = servo_rate(target[k] - stress_c[k],
+                                            target[k] - stress_c[k] + stress_d[k], stiff[a],
+                                            l_int[a], dt, tau, l_max)
         else:
             L[r, cc] = rate[a]
 
 
 @njit(cache=True)
-def _next_cell(L, l_int, stress_c, stiff, rate, controlled, target0, target1, frac, dt, tau,
-               l_max, h):
+def _next_cell(L, l_int, stress_c, stress_d, stiff, rate, controlled, target0, target1, frac,
+               dt, tau, l_max, h):
     """Step 1 and the cell part of step 3: L of the next step (target at ``frac`` of
     [target0, target1]), h_next by the Cayley map and h_mid⁻¹."""
     target = target0 + (target1 - target0) * frac
-    _servo(L, l_int, stress_c, stiff, rate, controlled, target, dt, tau, l_max)
+    _servo(L, l_int, stress_c, stress_d, stiff, rate, controlled, target, dt, tau, l_max)
     h_next = cayley_step(h, L, dt)
     hm = 0.5 * (h + h_next)
     det = hm[0, 0] * hm[1, 1] - hm[0, 1] * hm[1, 0]
@@ -414,7 +424,7 @@ def advance_kernel(nsteps, mid_step, k0, ktotal, dt, kn, kt, mu, mu_roll, skin, 
                    gdot_ref, tau_servo, l_max, radius, pair_const, mass, inv_mass, inv_inertia,
                    s, v, omega, force, torque, s_ref, h, h_ref, L, l_int, pair_ij, pair_shift,
                    pair_hist, pair_f, n_pairs, inc_ptr, inc, rate, controlled,
-                   target0, target1, stress, stress_c, stiff, acc):
+                   target0, target1, stress, stress_c, stress_d, stiff, acc):
     """Up to ``nsteps`` steps (see the module doc); returns (steps completed, status).
 
     Two parallel passes per step: the pairs (step 5), then the discs (step 6 of this
@@ -428,8 +438,8 @@ def advance_kernel(nsteps, mid_step, k0, ktotal, dt, kn, kt, mu, mu_roll, skin, 
     half = 0.5 * dt
     L_end = L.copy()
     if not mid_step:
-        h_next, hmi = _next_cell(L, l_int, stress_c, stiff, rate, controlled, target0, target1,
-                                 (k0 + 1) / ktotal, dt, tau_servo, l_max, h)
+        h_next, hmi = _next_cell(L, l_int, stress_c, stress_d, stiff, rate, controlled, target0,
+                                 target1, (k0 + 1) / ktotal, dt, tau_servo, l_max, h)
         ks = disc_pass(pair_f, inc_ptr, inc, force, torque, v, omega, s, s_ref, mass, inv_mass,
                        inv_inertia, L_end, L, h_next, hmi, half, dt, False, True)
         h[:, :] = h_next
@@ -438,14 +448,15 @@ def advance_kernel(nsteps, mid_step, k0, ktotal, dt, kn, kt, mu, mu_roll, skin, 
     for k in range(nsteps):
         ps = pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair_hist,
                          pair_f, n_pairs, kn, kt, mu, mu_roll, dt)
-        _contact_stress(h, ps, stress_c, stiff)
+        _contact_stress(h, ps, stress_c, stress_d, stiff)
         last = k + 1 == nsteps
         L_end[:, :] = L
         if last:
             h_next, hmi = h, h
         else:
-            h_next, hmi = _next_cell(L, l_int, stress_c, stiff, rate, controlled, target0,
-                                     target1, (k0 + k + 2) / ktotal, dt, tau_servo, l_max, h)
+            h_next, hmi = _next_cell(L, l_int, stress_c, stress_d, stiff, rate, controlled,
+                                     target0, target1, (k0 + k + 2) / ktotal, dt, tau_servo,
+                                     l_max, h)
         ks = disc_pass(pair_f, inc_ptr, inc, force, torque, v, omega, s, s_ref, mass, inv_mass,
                        inv_inertia, L_end, L, h_next, hmi, half, dt, True, not last)
         _end_step(acc, h, L_end, dt, ps, ks, stress, stress_c)
@@ -481,7 +492,7 @@ def _evaluate_forces(state: State, dyn: Dynamics) -> State:
     ps = pair_forces(state.h, state.L, state.s, state.v, state.omega, state.radius,
                      _pair_constants(state, dyn), state.pair_ij, state.pair_shift,
                      state.pair_hist, state.pair_f, state.n_pairs, kn, kt, mu, mu_roll, 0.0)
-    _contact_stress(state.h, ps, state.stress_contact, state.stiff)
+    _contact_stress(state.h, ps, state.stress_contact, state.stress_damping, state.stiff)
     none = np.zeros((2, 2))
     ks = disc_pass(state.pair_f, state.inc_ptr, state.inc, state.force, state.torque, state.v,
                    state.omega, state.s, state.s_ref, state.mass, state.inv_mass,
@@ -517,7 +528,7 @@ def _advance(state: State, dyn: Dynamics, nsteps: int, control: Control) -> Stat
             state.pair_ij, state.pair_shift, state.pair_hist, state.pair_f, state.n_pairs,
             state.inc_ptr, state.inc, np.asarray(control.rate, float), controlled,
             np.asarray(control.target0, float), np.asarray(control.target1, float),
-            state.stress, state.stress_contact, state.stiff, state.acc)
+            state.stress, state.stress_contact, state.stress_damping, state.stiff, state.acc)
         state.step += done
         done_total += done
         if status == NOT_FINITE:

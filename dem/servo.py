@@ -23,6 +23,20 @@ steady rate under the prescribed components) leaves no steady error: the servo d
 lag. Dividing by the *measured* M_ab keeps the loop critically damped as the contact
 network stiffens or softens.
 
+The dashpots. Part of σ^c is the normal dashpots' force, σ^d = (1/V) Σ (-fd n)⊗l
+with fd = -γ vn: it answers the cell's strain rate within the same step, σ^d ≈ C L
+(C ~ γ z c per unit volume). Fed back through the proportional term, it closes a loop
+L_n = (2/τ)(σ* - σ^s - C L_(n-1))/M of gain (2/τ) C/M ≈ 2.2 β (β the damping ratio of
+the contact law): about 0.6–0.8 at e = 0.5 (stable, but the strain rate rings), above 1
+at e <= 0.4 (it never settles: no preparation relaxed in 2e6 steps; measured on branch
+dem-e, 2026-12-02). So the proportional term acts on the spring stress only,
+
+    L_ab = L_int + (2/τ) (σ*_ab - σ^c_ab + σ^d_ab) / M_ab,   dL_int/dt = (σ*_ab - σ^c_ab) / (M_ab τ²),   (b')
+
+which keeps (b)'s double pole for the spring stress σ^s = σ^c - σ^d (the plant (a) is
+a statement about springs), while the integral term holds the whole contact stress σ^c,
+dashpots included, at the target in a steady state.
+
 Gain. τ must be (i) long compared with the time step (dt/τ <= 0.1 keeps the discrete
 loop within a few percent of the continuous one) and (ii) short compared with the time
 over which the packing relaxes non-affinely, so the loop sees the affine plant (a) it
@@ -65,13 +79,14 @@ def time_constant(kn: float, rho: float = 1.0, d_mean: float = 1.0) -> float:
 
 
 @njit(cache=True)
-def servo_rate(err, stiffness, l_int, dt, tau, l_max):
-    """One servo update (b): returns (L_ab, new L_int); see the module docstring."""
+def servo_rate(err, err_spring, stiffness, l_int, dt, tau, l_max):
+    """One servo update (b'): returns (L_ab, new L_int); ``err`` = σ* - σ^c integrated,
+    ``err_spring`` = σ* - (σ^c - σ^d) proportional (module docstring)."""
     m = stiffness
     if m < M_FLOOR:
         m = M_FLOOR
     li = l_int + dt * err / (m * tau * tau)
-    rate = li + 2.0 * err / (m * tau)
+    rate = li + 2.0 * err_spring / (m * tau)
     if rate > l_max:
         return l_max, l_int
     if rate < -l_max:

@@ -24,7 +24,8 @@ Pairs (capacity C, the first ``n_pairs`` valid, i < j, sorted by i, ``row_ptr`` 
 Incidence (for gathering forces per disc without scattered writes): inc_ptr (N+1),
     inc (2C): pair q as ``q`` when the disc is its i, as ``-q-1`` when it is its j.
 stress (3,) (sxx, syy, sxy) incl. the kinetic part, tension positive; stress_contact (3,)
-    its contact part (1/V) Σ f⊗l, the stress the servo holds; stiff (4,)
+    its contact part (1/V) Σ f⊗l, the stress the servo holds; stress_damping (3,) the
+    normal dashpots' part of stress_contact (:mod:`dem.servo`); stiff (4,)
     affine stiffness of each L component (for the servo); acc (NACC,) accumulators.
 """
 from __future__ import annotations
@@ -68,6 +69,7 @@ class State:
     inc: np.ndarray
     stress: np.ndarray
     stress_contact: np.ndarray
+    stress_damping: np.ndarray
     stiff: np.ndarray
     acc: np.ndarray
     step: int = 0
@@ -122,5 +124,5 @@ def new_state(radius: np.ndarray, s: np.ndarray, h: np.ndarray, rho: float = 1.0
                  pair_hist=np.zeros((0, HIST)), pair_f=np.zeros((0, 4)), n_pairs=0,
                  row_ptr=np.zeros(n + 1, np.int64), inc_ptr=np.zeros(n + 1, np.int64),
                  inc=np.zeros(0, np.int64), stress=np.zeros(3), stress_contact=np.zeros(3),
-                 stiff=np.zeros(4),
+                 stress_damping=np.zeros(3), stiff=np.zeros(4),
                  acc=np.zeros(NACC))

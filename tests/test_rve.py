@@ -26,8 +26,15 @@ def test_biaxial_stage_follows_rate_stops_and_aligns_fabric(packing_frictional):
     assert all(abs(r["sxx"] + 1.0) < 0.035 for r in rows)
     assert abs(np.mean([r["sxx"] for r in rows[1:]]) + 1.0) < 0.01
     assert last["RP"] > 0.15 and last["syy"] < -1.3
-    # contact normals gather along the compression axis y: θp near ±π/2
-    assert abs(abs(last["theta_p"]) - np.pi / 2) < 0.3 and last["B"] > 0.05
+    # contact normals gather along the compression axis y: θp near ±π/2. One row of
+    # N = 150 scatters by ~0.3 rad, so the check is on the mean fabric (Bc, Bs) over the
+    # second half of the stage
+    half = rows[len(rows) // 2:]
+    b_mean, theta_mean = fabric_polar(np.mean([r["Bc"] for r in half]),
+                                      np.mean([r["Bs"] for r in half]))
+    # (measured 0.25 rad off, B 0.16; 0.18 and 0.20 before the servo's proportional term
+    # left out the dashpot stress)
+    assert abs(abs(theta_mean) - np.pi / 2) < 0.3 and b_mean > 0.05
     assert all(r["admissibility"] >= 0 for r in rows)
     b, _ = fabric_polar(last["Bc"], last["Bs"])
     assert np.isclose(b, last["B"]) and np.isclose(last["z"], np.pi * last["A"])

@@ -7,9 +7,10 @@ from dem.servo import servo_rate
 
 
 def test_servo_law_is_pi_in_rate_space_with_cap_and_anti_windup():
-    rate, li = servo_rate(0.01, 100.0, 0.0, 0.1, 1.0, 1.0)
-    assert np.isclose(li, 0.1 * 0.01 / 100.0) and np.isclose(rate, li + 2 * 0.01 / 100.0)
-    rate, li = servo_rate(10.0, 1e-20, 0.3, 0.1, 1.0, 0.5)  # empty network: capped, frozen
+    # integral on the whole contact-stress error, proportional on the spring-stress error
+    rate, li = servo_rate(0.01, 0.03, 100.0, 0.0, 0.1, 1.0, 1.0)
+    assert np.isclose(li, 0.1 * 0.01 / 100.0) and np.isclose(rate, li + 2 * 0.03 / 100.0)
+    rate, li = servo_rate(10.0, 10.0, 1e-20, 0.3, 0.1, 1.0, 0.5)  # empty network: capped, frozen
     assert rate == 0.5 and li == 0.3
 
 
