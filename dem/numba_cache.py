@@ -22,11 +22,12 @@ import sys
 from pathlib import Path
 
 
-def source_digest() -> str:
-    """SHA-1 over the relative path and bytes of every .py file of both packages."""
+def source_digest(packages: tuple[str, ...] = ("dem", "contfab")) -> str:
+    """SHA-1 over the relative path and bytes of every .py file of ``packages`` (both by
+    default; ``("dem",)`` keys results that depend on the DEM's code only)."""
     root = Path(__file__).resolve().parent.parent
     h = hashlib.sha1()
-    for pkg in ("dem", "contfab"):
+    for pkg in packages:
         for f in sorted((root / pkg).rglob("*.py")):
             h.update(str(f.relative_to(root)).encode())
             h.update(f.read_bytes())

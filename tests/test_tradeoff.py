@@ -97,6 +97,19 @@ def test_points_of_other_parameters_are_rerun_and_a_list_writes_the_summary(tmp_
     assert set(again) == set(stamp) and all(again[k] != stamp[k] for k in stamp)
 
 
+def test_points_that_ran_the_dem_are_keyed_on_its_code():
+    """DEM and tier studies carry a hash of dem/*.py in the settings their stored points
+    must match (the mechanism above), so a change of the DEM's code reruns them."""
+    from contfab.tradeoff import load_study
+    from contfab.tradeoff.study import dem_code_digest
+    from dem.numba_cache import source_digest
+
+    assert dem_code_digest() == source_digest(("dem",)) != source_digest()
+    for name in ("dem_size", "dem_inertial", "dem_stiffness", "tier_biaxial", "tier_reversal"):
+        assert load_study(name, True).settings["dem_code"] == dem_code_digest(), name
+    assert "dem_code" not in load_study("point_lambda", True).settings
+
+
 def _table(folder, name):
     return np.genfromtxt(folder / name / f"{name}.csv", delimiter=",", names=True, dtype=None,
                          encoding="utf-8")

@@ -67,6 +67,14 @@ class Clock:
         self.cpu = time.process_time() - self._c
 
 
+def dem_code_digest() -> str:
+    """A short hash of the DEM's source: points that ran the DEM carry it in their
+    settings, so a change of the DEM's code (its trajectories) reruns them."""
+    from dem.numba_cache import source_digest
+
+    return source_digest(("dem",))
+
+
 def point_key(point: dict) -> str:
     """A stable file name for a point: readable knob values and a short content hash."""
     text = json.dumps(point, sort_keys=True, default=str)

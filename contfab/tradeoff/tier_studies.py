@@ -26,7 +26,7 @@ from contfab import material_point as mp
 from contfab.curves import dem_curve, errors
 from contfab.fitting import Target, run_model
 from contfab.params import default_params, default_params_digest
-from contfab.tradeoff.study import Clock, Study
+from contfab.tradeoff.study import Clock, Study, dem_code_digest
 from dem.job import Settings, prepare_sample
 from dem.paths import load_path
 from dem.rve import PathRunner
@@ -95,7 +95,7 @@ def _study(name: str, path: str, fast: bool, reversal: bool) -> Study:
         error_meaning="RMS difference from the DEM seed mean over the path",
         settings={"path": path, "n": n, "seeds": seeds, "inertial": 1e-2, "kappa": 1e3,
                   "increment": 4e-3 if fast else mp.DEFAULT_INCREMENT,
-                  "parameters": default_params_digest()})
+                  "parameters": default_params_digest(), "dem_code": dem_code_digest()})
 
 
 def biaxial_study(fast: bool) -> Study:
