@@ -251,6 +251,9 @@ def _add_fexdem(p: argparse.ArgumentParser) -> None:
     p.add_argument("--relax", type=float, default=None, metavar="FORCE_TOL",
                    help="hold every cell after its increment until the unbalanced force ratio "
                         "< FORCE_TOL (default: no hold, the campaign's continuous I = 1e-3 paths)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue an interrupted run in OUT from its checkpoints (OUT/cells; "
+                        "same case and settings), then run the tiers")
 
 
 def _run_fexdem(args) -> None:
@@ -262,7 +265,11 @@ def _run_fexdem(args) -> None:
     from dem.job import Settings, prepare_job
 
     sample = args.sample
-    if sample is None:
+    if sample is None and args.resume:
+        sample = Path(args.out) / "prepared.npz"
+        if not sample.exists():
+            raise FileNotFoundError(f"--resume: no prepared sample {sample} (give --sample)")
+    elif sample is None:
         Path(args.out).mkdir(parents=True, exist_ok=True)
         sample = prepare_job(Settings(n=args.n, kappa=args.kappa, mu_prep=0.0),
                              Path(args.out) / "prepared.npz")
@@ -271,9 +278,11 @@ def _run_fexdem(args) -> None:
                                ("ny", args.ny)) if v is not None}
     options = CELL_OPTIONS if args.relax is None else CellOptions(force_tol=args.relax)
     report = run(args.case, str(sample), args.out, params, p0=args.p0, backend=args.backend,
-                 workers=args.workers, address=args.address, options=options, **extra)
+                 workers=args.workers, address=args.address, options=options,
+                 resume=args.resume, **extra)
     print(f"{args.case}: {report['cells']} DEM cells of {report['discs_per_cell']} discs, "
-          f"{report['elements']} {report['element']} elements")
+          f"{report['elements']} {report['element']} elements"
+          + (f", FE×DEM resumed at t = {report['resumed_from_t']:.4g}" if args.resume else ""))
     for name, r in report["runs"].items():
         err = r.get("errors")
         tail = "" if err is None else (f", curve error {err['curve']:.3g}, stress field error "

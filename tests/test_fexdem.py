@@ -248,3 +248,29 @@ def test_interrupted_run_resumes_from_the_field_and_cell_checkpoints(sample, tmp
     assert [r.residuals for r in solver.records] == [r.residuals for r in ref.records]
     np.testing.assert_array_equal(solver.committed.stress, ref.committed.stress)
     np.testing.assert_array_equal(solver.committed.u, ref.committed.u)
+
+
+def test_a_killed_scene_run_resumes_with_the_uninterrupted_curve(sample, tmp_path, monkeypatch):
+    """`contfab fexdem ... --resume` (compare.run(resume=True)): a run killed after the
+    checkpoint of step 2 of 4, before that step's curve row, resumes from OUT/cells and
+    writes the uninterrupted run's FE×DEM curve CSV byte for byte."""
+    from contfab.fexdem import compare
+
+    kw = dict(steps=4, strain=8e-4, nx=1, ny=1, progress=False)
+    compare.run("biaxial", str(sample), tmp_path / "ref", default_params(), **kw)
+    checkpoint_step = FexdemSolver._checkpoint
+
+    def killed_after_step_2(self, record):
+        checkpoint_step(self, record)
+        if len(self.records) == 2:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(FexdemSolver, "_checkpoint", killed_after_step_2)
+    with pytest.raises(KeyboardInterrupt):
+        compare.run("biaxial", str(sample), tmp_path / "cut", default_params(), **kw)
+    monkeypatch.undo()
+    curve = "biaxial_dem_curve.csv"
+    assert len((tmp_path / "cut" / curve).read_text().splitlines()) == 1 + 1  # header, step 1
+    report = compare.run("biaxial", str(sample), tmp_path / "cut", default_params(), resume=True, **kw)
+    assert report["resumed_from_t"] == 0.5 and report["runs"]["dem"]["steps"] == 4
+    assert (tmp_path / "cut" / curve).read_text() == (tmp_path / "ref" / curve).read_text()

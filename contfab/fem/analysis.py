@@ -8,7 +8,9 @@ plastic shear strain over the last steps: the active mechanism). When Newton
 fails below the minimum step, the last converged state is written as a frame, the
 curve so far is saved, ``NAME_failure.json`` holds the report, and the
 :class:`~contfab.fem.solver.ConvergenceError` is re-raised with the paths added and
-the curve so far as its ``curve`` (also without an output directory).
+the curve so far as its ``curve`` (also without an output directory). With
+``Outputs.curve_each_step`` the curve CSV is rewritten after every recorded step, so a
+killed run leaves its curve so far (the input of a resumed run, ``resume``).
 
 Each committed step also feeds the loading indicators of every quadrature point
 (:class:`contfab.indicators.Tracker`: axes rotation, reversal, distance from c*), the
@@ -41,6 +43,16 @@ class Outputs:
     reference: float | None = None                    # horizontal line on the curve plot
     reference_label: str = "reference"
     window: tuple[float, float, float, float] | None = None  # plastic-zone plot extent
+    curve_each_step: bool = False                     # rewrite NAME_curve.csv every step
+
+
+@dataclass
+class Resume:
+    """Where a resumed run starts: ``start`` of :meth:`Solver.run_stage` in the first
+    stage, and the curve rows recorded before it (the restored state's row included)."""
+
+    start: tuple
+    rows: list[list]
 
 
 @dataclass
@@ -59,16 +71,19 @@ class RunResult:
 
 
 def run(solver: Solver, stages: Sequence[Stage], measure: Callable[[Solver], dict],
-        outputs: Outputs, progress: bool = True, record_stages: Sequence[str] | None = None
-        ) -> RunResult:
+        outputs: Outputs, progress: bool = True, record_stages: Sequence[str] | None = None,
+        resume: Resume | None = None) -> RunResult:
     """Run ``stages`` in order; after each step record ``measure(solver)`` (a dict of floats).
 
     Only steps of ``record_stages`` (default: all) enter the curve. Frames are
-    written every ``outputs.frame_every`` recorded steps and at the end.
+    written every ``outputs.frame_every`` recorded steps and at the end. ``resume``: the
+    solver holds a restored mid-stage state of ``stages[0]``; the curve continues
+    ``resume.rows`` (the indicators and frames cover the resumed part only).
     """
     record_stages = [s.name for s in stages] if record_stages is None else list(record_stages)
     first = measure(solver)
-    result = RunResult(["stage", "t", "iterations", "cuts", *first], [])
+    result = RunResult(["stage", "t", "iterations", "cuts", *first],
+                       [] if resume is None else [list(r) for r in resume.rows])
     names = solver.material.state_names
     c_col = names.index("c") if "c" in names else None
     params = getattr(solver.material, "params", None)
@@ -81,13 +96,16 @@ def run(solver: Solver, stages: Sequence[Stage], measure: Callable[[Solver], dic
     gp_last = solver.committed.state[:, gp_col]
     gp_before = gp_last
     try:
-        for stage in stages:
+        for k, stage in enumerate(stages):
             bar = tqdm(total=1.0, desc=f"{outputs.name}: {stage.name}", disable=not progress,
                        bar_format="{desc} {percentage:3.0f}%|{bar}| {elapsed}<{remaining}{postfix}",
                        leave=False)
+            start = resume.start if resume is not None and k == 0 else None
             with bar:
+                if start is not None:
+                    bar.update(start[0])
                 stress_before = solver.committed.stress
-                for rec in solver.run_stage(stage):
+                for rec in solver.run_stage(stage, start):
                     c = solver.committed
                     gp_before, gp_last = gp_last, c.state[:, gp_col]
                     tracker.update(stress_before, c.stress, c.dstrain, c.status >= 1,
@@ -101,6 +119,9 @@ def run(solver: Solver, stages: Sequence[Stage], measure: Callable[[Solver], dic
                                         *measure(solver).values()])
                     result.iterations.append(rec.iterations)
                     step = len(result.rows)
+                    if outputs.curve_each_step and outputs.outdir is not None:
+                        write_csv(Path(outputs.outdir) / f"{outputs.name}_curve.csv",
+                                  result.columns, result.rows)
                     if series is not None and outputs.frame_every and step % outputs.frame_every == 0:
                         series.write(solver.committed, step)
     except ConvergenceError as exc:

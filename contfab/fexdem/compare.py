@@ -8,7 +8,7 @@ Written into ``--out`` (atomically):
 
     <run>_curve.csv, <run>.pvd + vtu, <run>_curve.png ...   per run (contfab.fem.analysis)
     cells/             the cells' and the FE field's checkpoints of the last converged step
-                       (FexdemSolver.resume)
+                       (FexdemSolver.resume); the FE×DEM curve CSV is rewritten every step
     overlay.png        the load-displacement curves of the three runs
     report.json        settings, N per cell, cells, wall times, Newton figures, errors, costs
 
@@ -17,6 +17,12 @@ the tier's curve interpolated at the FE×DEM abscissae, and at the end of the st
 relative L2 field errors (quadrature-weighted) of the stress, of R/P and of c. The
 cost ratio is the FE×DEM wall time over the tier's (each tier's kernels are loaded or
 compiled by one untimed update first).
+
+``resume=True`` (``contfab fexdem ... --resume``) continues an interrupted FE×DEM run in
+``--out`` from ``cells/`` (same scene and settings): the cells and the field restart from
+their last checkpointed step, the curve keeps the rows recorded before it, and the stage
+ends with the numbers of an uninterrupted run (tests/test_fexdem.py). The report's FE×DEM
+wall time and cost ratios then count the resumed part only (``resumed_from_t``).
 """
 from __future__ import annotations
 
@@ -66,21 +72,41 @@ CASES = {
 
 
 def make_cells(backend: str, prepared: str, n: int, options: CellOptions, workers: int,
-               address: str | None, ckdir: Path, progress: bool):
-    """The cell backend by name: serial, process (``workers``), dask (``address`` or local)."""
+               address: str | None, ckdir: Path, progress: bool, resume: bool = False):
+    """The cell backend by name: serial, process (``workers``), dask (``address`` or local);
+    ``resume``: the cells restart from their checkpoints in ``ckdir``."""
     if backend == "serial":
-        return SerialCells(prepared, n, options, ckdir, progress=progress)
+        return SerialCells(prepared, n, options, ckdir, resume, progress=progress)
     if backend == "process":
-        return ProcessCells(prepared, n, options, workers, ckdir, progress=progress)
+        return ProcessCells(prepared, n, options, workers, ckdir, resume, progress=progress)
     if backend == "dask":
         from distributed import Client, LocalCluster
         cluster = None if address else LocalCluster(n_workers=workers, threads_per_worker=1,
                                                    dashboard_address=None)
         client = Client(address or cluster)
-        cells = DaskCells(prepared, n, options, client, ckdir=ckdir, progress=progress)
+        cells = DaskCells(prepared, n, options, client, ckdir=ckdir, resume=resume,
+                          progress=progress)
         cells.owned = (client, cluster)
         return cells
     raise ValueError(f"backend {backend!r} unknown; accepted serial, process, dask")
+
+
+def _rows_before(curve: Path, solver: FexdemSolver, measure) -> list[list]:
+    """The curve of an interrupted run up to its restored step: the CSV's rows before the
+    restored t, then the restored state's own row (the kill may have come between the
+    step's checkpoint and its CSV row)."""
+    t = solver.committed.t
+    rows = []
+    if curve.exists():
+        with curve.open() as f:
+            next(f)
+            for line in f:
+                cells = line.rstrip("\n").split(",")
+                if float(cells[1]) < t - 1e-12:
+                    rows.append([cells[0], float(cells[1]), int(cells[2]), int(cells[3]),
+                                 *map(float, cells[4:])])
+    last = solver.records[-1]
+    return rows + [[last.stage, t, last.iterations, last.cuts, *measure(solver).values()]]
 
 
 def _rel_l2(w: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
@@ -104,7 +130,8 @@ def field_errors(disc, ref_stress, ref_c, stress, c) -> dict:
 
 def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1.0,
         backend: str = "serial", workers: int = 2, address: str | None = None,
-        options: CellOptions = CELL_OPTIONS, progress: bool = True, **overrides) -> dict:
+        options: CellOptions = CELL_OPTIONS, progress: bool = True, resume: bool = False,
+        **overrides) -> dict:
     """Run ``case`` three ways and write the report (see the module doc); returns it."""
     if case not in CASES:
         raise ValueError(f"case {case!r} unknown; accepted {sorted(CASES)}")
@@ -119,14 +146,20 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
     curves, finals = {}, {}
     t0 = time.perf_counter()
     cells = make_cells(backend, prepared, disc.npoints, options, workers, address, out / "cells",
-                       progress)
+                       progress, resume)
     try:
         mat = DemMaterial(cells, disc, params, p_unit=p0, tangent=TANGENT,
                           tangent_tier=params.tier if params.tier in (1, 2) else 2)
-        solver = FexdemSolver(disc, mat, DEM_NEWTON, ckdir=out / "cells")
-        stress0, state0 = solver.committed.stress.copy(), solver.committed.state.copy()
-        res = analysis.run(solver, [scene.stage], scene.measure,
-                           analysis.Outputs(out, f"{case}_dem", curve_axes=(xcol, ycol)), progress)
+        stress0, state0 = mat.initial()
+        outputs = analysis.Outputs(out, f"{case}_dem", curve_axes=(xcol, ycol), curve_each_step=True)
+        if resume:
+            solver, start = FexdemSolver.resume(disc, mat, DEM_NEWTON, out / "cells", scene.stage)
+            report["resumed_from_t"] = start[0]
+            again = analysis.Resume(start, _rows_before(out / f"{outputs.name}_curve.csv", solver,
+                                                        scene.measure))
+        else:
+            solver, again = FexdemSolver(disc, mat, DEM_NEWTON, ckdir=out / "cells"), None
+        res = analysis.run(solver, [scene.stage], scene.measure, outputs, progress, resume=again)
         from dem.checkpoint import load
         st, dyn, _, _ = load(prepared)
         report["discs_per_cell"] = st.n
