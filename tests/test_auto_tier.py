@@ -10,7 +10,7 @@ from contfab.models import tiers
 from contfab.params import ParamError, default_params
 from contfab.tradeoff.auto_tier import AutoTierError, choose, load_table
 
-TOL = 0.11
+TOL = 0.12
 """A tolerance inside the window the shipped bounds leave between the classes (below)."""
 
 
@@ -56,14 +56,16 @@ def test_unloading_and_reloading_the_same_way_is_no_reversal():
 
 
 def test_the_shipped_bounds_choose_tier1_for_monotonic_and_tier2_for_reversal():
-    """The table (docs/calibration/errors.csv, N = 1000, 3 seeds): monotonic tier 0 0.120,
-    tier 1 0.045; reversal transient tier 1 0.1133, tier 2 balance 0.1097 - a window
-    [0.1097, 0.1133) where the classes get different tiers."""
+    """The table (docs/calibration/errors.csv, N = 1000, 3 seeds): monotonic tier 0 0.117,
+    tier 1 0.044; reversal transient tier 1 0.1305, tier 2 balance 0.1178 - a window
+    [0.1178, 0.1305) where the classes get different tiers for a case that measures c
+    (min_tier 1, both cases); without that floor tier 0 already meets the monotonic bound."""
     table = load_table()
-    mono, rev = choose("monotonic", TOL, table), choose("reversal", TOL, table)
+    mono, rev = choose("monotonic", TOL, table, min_tier=1), choose("reversal", TOL, table)
     assert (mono.tier, mono.model, mono.met) == (1, "tier 1", True)
     assert (rev.tier, rev.model, rev.met) == (2, "tier 2 balance", True)
-    assert "cheaper ones exceed it: tier 0 0.12" in mono.reason
+    assert choose("monotonic", TOL, table).tier == 0
+    assert "cheaper ones exceed it: tier 0 0.117" in choose("monotonic", 0.1, table).reason
     tier1_rev = next(r["error"] for r in table["reversal"] if r["model"] == "tier 1")
     assert rev.error < TOL < tier1_rev
     tight = choose("reversal", 0.05, table)
@@ -73,7 +75,7 @@ def test_the_shipped_bounds_choose_tier1_for_monotonic_and_tier2_for_reversal():
     # a case that needs c (min_tier 1): a loose tolerance gives tier 1, not tier 0
     assert choose("monotonic", 0.2, table).tier == 0
     assert choose("monotonic", 0.2, table, min_tier=1).tier == 1
-    assert choose("reversal", 0.115, table, min_tier=1).model == "tier 1"
+    assert choose("reversal", 0.135, table, min_tier=1).model == "tier 1"
 
 
 def _fake_solve(flag):

@@ -160,8 +160,8 @@ def _points(values: dict, seeds: int):
 
 
 def size_study(fast: bool) -> Study:
-    ns = [64, 128, 256] if fast else [250, 500, 1000, 2000, 4000]
-    seeds = 2 if fast else 3
+    ns = [64, 128, 512] if fast else [250, 500, 1000, 2000, 4000]
+    seeds = 3
     strain, steady = (0.12, 0.06) if fast else (0.2, 0.1)
     return Study(
         name="dem_size", knobs=("n", "seeds"),
