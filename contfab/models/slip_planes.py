@@ -338,17 +338,25 @@ def _refine_on_arc(g, u, lo, hi, kinks, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def _slip_angle(sq, cq, sp, cp, dpsi, dphi):
-    """(sin ψ̂, cos ψ̂) and their derivatives along (dψ, dφ) (module doc)."""
+def _slip_angle(sq, sp, cp):
+    """(sin ψ̂, cos ψ̂, ρ) from (sin ψ, sin φ, cos φ) (module doc): ψ̂ = atan2(num, den),
+    num = sin ψ cos φ, den = 1 - sin ψ sin φ, ρ = hypot(num, den)."""
     num = sq * cp
     den = 1.0 - sq * sp
     rho = np.hypot(num, den)
-    sh = num / rho
-    ch = den / rho
+    return num / rho, den / rho, rho
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _slip_angle_derivative(sq, cq, sp, cp, sh, ch, rho, dpsi, dphi):
+    """The derivatives of (sin ψ̂, cos ψ̂) along (dψ, dφ), from :func:`_slip_angle`'s values
+    (ρ computed once per plane for its seven directions)."""
+    num = sq * cp
+    den = 1.0 - sq * sp
     d_num = cq * cp * dpsi - sq * sp * dphi
     d_den = -(cq * sp * dpsi + sq * cp * dphi)
     d_rho = (num * d_num + den * d_den) / rho
-    return sh, ch, (d_num - sh * d_rho) / rho, (d_den - ch * d_rho) / rho
+    return (d_num - sh * d_rho) / rho, (d_den - ch * d_rho) / rho
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
@@ -484,7 +492,8 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
     cq = np.cos(psi)
     cp = 1.0 / np.sqrt(sec2)
     sp = t * cp
-    sh, ch, sh_t, ch_t = _slip_angle(sq, cq, sp, cp, q_t, p_t)
+    sh, ch, rho_h = _slip_angle(sq, sp, cp)
+    sh_t, ch_t = _slip_angle_derivative(sq, cq, sp, cp, sh, ch, rho_h, q_t, p_t)
     # N_θ: ∂(∂τ/∂σ)/∂θ = (-c2, c2, -2 s2), ∂(∂σn/∂σ)/∂θ = (-s2, s2, 2 c2).
     nt0 = g * ch_t * ta_s0 - g * ch * c2 + sh_t * sn_s0 - sh * s2
     nt1 = g * ch_t * ta_s1 + g * ch * c2 + sh_t * sn_s1 + sh * s2
@@ -517,7 +526,7 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
         else:
             dphi = 0.0
             dpsi = b if clamp == 0.0 else 0.0
-        _, _, sh_p, ch_p = _slip_angle(sq, cq, sp, cp, dpsi, dphi)
+        sh_p, ch_p = _slip_angle_derivative(sq, cq, sp, cp, sh, ch, rho_h, dpsi, dphi)
         pl[k, PL_NP + j] = g * ch_p * ta_s0 + sh_p * sn_s0
         pl[k, PL_NP + N_P + j] = g * ch_p * ta_s1 + sh_p * sn_s1
         pl[k, PL_NP + 2 * N_P + j] = g * ch_p * ta_s2 + sh_p * sn_s2
