@@ -136,10 +136,10 @@ def _kink(c2, s2, phi0, pc, ps, phi_lo, phi_hi):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def has_kinks(phi0, pc, ps, phi_lo, phi_hi):
-    """Whether φ_raw(θ) (:func:`_kink`) crosses a clamp bound: only then can an arc maximum
-    sit on a corner of h."""
-    rho = np.hypot(pc, ps)
+def has_kinks(phi0, rho, phi_lo, phi_hi):
+    """Whether φ_raw(θ) = φ0 + ρ cos(2θ - β) (:func:`_kink`; ρ = hypot(pc, ps), fab[6] of
+    :func:`fabric_terms`) crosses a clamp bound: only then can an arc maximum sit on a corner
+    of h."""
     return rho > 0.0 and (phi0 - rho < phi_lo or phi0 + rho > phi_hi)
 
 
@@ -162,9 +162,9 @@ def single_maximum(m, r, phi0, pc, ps, phi_lo, phi_hi):
     strictly concave, then falls along the arc: one maximum (possibly at an end). With
     ρ = 0 (φ independent of θ) this holds wherever R > 0.
     """
-    if r <= 0.0 or has_kinks(phi0, pc, ps, phi_lo, phi_hi):
-        return False
     rho = np.hypot(pc, ps)
+    if r <= 0.0 or has_kinks(phi0, rho, phi_lo, phi_hi):
+        return False
     t0 = np.tan(phi0)
     amp = r * np.sqrt(1.0 + t0 * t0)
     t = np.tan(max(abs(phi0 - rho), abs(phi0 + rho)))
@@ -217,7 +217,7 @@ def _corner_on_arc(u, g, m, r, ca, sa, slope, bound, side):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def arc_maximum(g, u0, n_search, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
+def arc_maximum(g, u0, n_search, maxit, m, r, ca, sa, fab):
     """u of the maximum of h over the arc of sign g (u in [0, π] for g < 0, [-π, 0] else).
 
     With ``n_search`` > 0: h on that many evenly spaced points and on the arc's two ends
@@ -227,9 +227,11 @@ def arc_maximum(g, u0, n_search, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     and the higher result is the maximum — two peaks nearly tied could otherwise be decided
     by the grid's samples, not by their values. Otherwise ``u0`` starts the refinement (a
     warm start) inside the whole arc. The grid's cos u, sin u follow by rotation through du.
-    (:func:`arc_maxima` skips the grid where it is not needed.)
+    (:func:`arc_maxima` skips the grid where it is not needed.) Each refinement takes at most
+    ``maxit`` steps (NEWTON_MAXIT_PLANE: to convergence). ``fab``: :func:`fabric_terms`.
     """
-    kinks = has_kinks(phi0, pc, ps, phi_lo, phi_hi)
+    phi0, pc, ps, phi_lo, phi_hi = fab[0], fab[1], fab[2], fab[8], fab[9]
+    kinks = has_kinks(phi0, fab[6], phi_lo, phi_hi)
     if g < 0.0:
         lo = 0.0
         hi = np.pi
@@ -237,7 +239,7 @@ def arc_maximum(g, u0, n_search, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
         lo = -np.pi
         hi = 0.0
     if n_search == 0:
-        return _refine_on_arc(g, min(max(u0, lo), hi), lo, hi, kinks, m, r, ca, sa, phi0, pc,
+        return _refine_on_arc(g, min(max(u0, lo), hi), lo, hi, kinks, maxit, m, r, ca, sa, phi0, pc,
                               ps, phi_lo, phi_hi)
     du = (hi - lo) / n_search
     h1 = -np.inf
@@ -276,10 +278,10 @@ def arc_maximum(g, u0, n_search, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
         v_prev = v_cur
         v_cur = v_next
         u_cur = u_next
-    u = _refine_on_arc(g, u1, max(lo, u1 - du), min(hi, u1 + du), kinks, m, r, ca, sa, phi0,
+    u = _refine_on_arc(g, u1, max(lo, u1 - du), min(hi, u1 + du), kinks, maxit, m, r, ca, sa, phi0,
                        pc, ps, phi_lo, phi_hi)
     if h2 > -np.inf:
-        ub = _refine_on_arc(g, u2, max(lo, u2 - du), min(hi, u2 + du), kinks, m, r, ca, sa,
+        ub = _refine_on_arc(g, u2, max(lo, u2 - du), min(hi, u2 + du), kinks, maxit, m, r, ca, sa,
                             phi0, pc, ps, phi_lo, phi_hi)
         if (_h_on_arc(ub, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)[0]
                 > _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)[0]):
@@ -302,13 +304,14 @@ def _end_value(u, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def _refine_on_arc(g, u, lo, hi, kinks, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
+def _refine_on_arc(g, u, lo, hi, kinks, maxit, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     """The maximum of h in [lo, hi] from u: Newton on ∂h/∂u = 0, safeguarded by bisection
-    on the sign of ∂h/∂u (a Newton step below PLANE_LAST_STEP is the last). Where φ(θ)
+    on the sign of ∂h/∂u (a Newton step below PLANE_LAST_STEP is the last; at most ``maxit``
+    steps). Where φ(θ)
     reaches a clamp (``kinks``), h = |τ| + tan(clamp(φ_raw)) σn has a kink at the boundary
     and the maximum can sit on it (a corner, ∂h/∂u jumping from + to -): a step that
     crosses a boundary stops there if it is a corner maximum (:func:`_corner_on_arc`)."""
-    for _ in range(NEWTON_MAXIT_PLANE):
+    for _ in range(maxit):
         _, hu, huu = _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)
         if huu < 0.0 and abs(hu) < PLANE_TOL * -huu:   # the Newton step is below tolerance
             return u
@@ -349,8 +352,7 @@ def _slip_angle(sq, sp, cp):
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def _slip_angle_derivative(sq, cq, sp, cp, sh, ch, rho, dpsi, dphi):
-    """The derivatives of (sin ψ̂, cos ψ̂) along (dψ, dφ), from :func:`_slip_angle`'s values
-    (ρ computed once per plane for its seven directions)."""
+    """The derivatives of (sin ψ̂, cos ψ̂) along (dψ, dφ), from :func:`_slip_angle`'s values."""
     num = sq * cp
     den = 1.0 - sq * sp
     d_num = cq * cp * dpsi - sq * sp * dphi
@@ -376,7 +378,7 @@ def _branch_slopes(g, sn, m, tau, phi, p_t, p_tt):
 def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
     """Every term of the arc-g maximum near u, written to row k of ``pl`` (layout PL_*).
 
-    ``fab`` = (φ0, pc, ps, ψ0, qc, qs, ·, ·, φ_min, φ_max) (:func:`fabric_terms`). u need
+    ``fab`` = (φ0, pc, ps, ψ0, qc, qs, ρ, ·, φ_min, φ_max) (:func:`fabric_terms`). u need
     not be the exact maximizer: with the plane's Newton step δθ = -h_θ/h_θθ (stored as
     PL_DT, limited to the arc) the values are those of the predicted maximum to second
     order — h + ½ h_θ δθ, N + N_θ δθ, ∂h/∂σ + h_θσ δθ — so an outer Newton iteration that
@@ -420,7 +422,7 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
     corner = False
     kink_t = 0.0
     dk = 0.0
-    if has_kinks(phi0, pc, ps, fab[8], fab[9]):
+    if has_kinks(phi0, fab[6], fab[8], fab[9]):
         # Local model: the two smooth branches of h (φ clamped, φ free) as quadratics at θ,
         # meeting at the nearest clamp boundary θ + δk. Its maximum is that corner when the
         # clamped branch still rises toward the free side there and the free one falls.
@@ -493,7 +495,12 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
     cp = 1.0 / np.sqrt(sec2)
     sp = t * cp
     sh, ch, rho_h = _slip_angle(sq, sp, cp)
-    sh_t, ch_t = _slip_angle_derivative(sq, cq, sp, cp, sh, ch, rho_h, q_t, p_t)
+    # (sin ψ̂, cos ψ̂) are functions of (ψ, φ): their derivatives along any direction
+    # (dψ, dφ) combine the two partials.
+    sh_q, ch_q = _slip_angle_derivative(sq, cq, sp, cp, sh, ch, rho_h, 1.0, 0.0)
+    sh_f, ch_f = _slip_angle_derivative(sq, cq, sp, cp, sh, ch, rho_h, 0.0, 1.0)
+    sh_t = sh_q * q_t + sh_f * p_t
+    ch_t = ch_q * q_t + ch_f * p_t
     # N_θ: ∂(∂τ/∂σ)/∂θ = (-c2, c2, -2 s2), ∂(∂σn/∂σ)/∂θ = (-s2, s2, 2 c2).
     nt0 = g * ch_t * ta_s0 - g * ch * c2 + sh_t * sn_s0 - sh * s2
     nt1 = g * ch_t * ta_s1 + g * ch * c2 + sh_t * sn_s1 + sh * s2
@@ -526,7 +533,8 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
         else:
             dphi = 0.0
             dpsi = b if clamp == 0.0 else 0.0
-        sh_p, ch_p = _slip_angle_derivative(sq, cq, sp, cp, sh, ch, rho_h, dpsi, dphi)
+        sh_p = sh_q * dpsi + sh_f * dphi
+        ch_p = ch_q * dpsi + ch_f * dphi
         pl[k, PL_NP + j] = g * ch_p * ta_s0 + sh_p * sn_s0
         pl[k, PL_NP + N_P + j] = g * ch_p * ta_s1 + sh_p * sn_s1
         pl[k, PL_NP + 2 * N_P + j] = g * ch_p * ta_s2 + sh_p * sn_s2
@@ -550,7 +558,9 @@ def fabric_terms_jacobian(prm, out):
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def fabric_terms(c, a, bc, bs, prm, dpz):
-    """The per-state constants ``fab`` of :func:`plane_terms` (layout of ``prm``: fabric_model).
+    """The per-state constants ``fab`` = (φ0, pc, ps, ψ0, qc, qs, ρ, ψ', φ_min, φ_max) of
+    :func:`plane_terms`, ρ = hypot(pc, ps) the amplitude of φ's anisotropy (:func:`has_kinks`)
+    and ψ' unused here (layout of ``prm``: fabric_model).
 
     (Bc', Bs') = fabric rotated by -a3/2 gives a2 B cos(2(θ-θp) + a3) = pc cos 2θ + ps sin 2θ.
     p is affine in (c, A, Bc, Bs) with the constant Jacobian ``dpz`` of
@@ -563,7 +573,7 @@ def fabric_terms(c, a, bc, bs, prm, dpz):
     ps = dpz[2, 2] * bc + dpz[2, 3] * bs
     qc = dpz[4, 2] * bc + dpz[4, 3] * bs
     qs = dpz[5, 2] * bc + dpz[5, 3] * bs
-    return phi0, pc, ps, psi0, qc, qs, prm[3], prm[4], prm[6], prm[7]
+    return phi0, pc, ps, psi0, qc, qs, np.hypot(pc, ps), prm[4], prm[6], prm[7]
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
@@ -595,25 +605,30 @@ def arc_u(theta, g, two_alpha):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def arc_maxima(m, r, ca, sa, two_alpha, fab, n_search, theta):
-    """(u0, u1): the maxima of both arcs (:func:`arc_maximum`) of the stress (m, R, 2α);
-    ``theta`` (2,) in/out: the planes (warm starts in, maximizers out).
+def arc_maxima(m, r, ca, sa, two_alpha, fab, n_search, maxit, theta):
+    """(u0, u1): the maxima of both arcs (:func:`arc_maximum`, refinements of at most
+    ``maxit`` steps) of the stress (m, R, 2α); ``theta`` (2,) in/out: the planes (warm
+    starts in, maximizers out).
 
     Where h provably has a single maximum on each arc (:func:`single_maximum`) the grid of
     ``n_search`` points is not needed: each refinement starts inside its whole arc from
     u* = atan2(-g, tan φ0), the maximum of h's θ-independent part (for φ independent of θ
-    the maximum itself).
+    the maximum itself; = -g(π/2 - φ0) where |φ0| < π/2).
     """
-    phi0, pc, ps = fab[0], fab[1], fab[2]
-    single = n_search > 0 and single_maximum(m, r, phi0, pc, ps, fab[8], fab[9])
-    u_star = np.arctan2(1.0, np.tan(phi0)) if single else 0.0
+    phi0 = fab[0]
+    single = n_search > 0 and single_maximum(m, r, phi0, fab[1], fab[2], fab[8], fab[9])
+    if not single:
+        u_star = 0.0
+    elif abs(phi0) < 0.5 * np.pi:
+        u_star = 0.5 * np.pi - phi0
+    else:
+        u_star = np.arctan2(1.0, np.tan(phi0))
     u0 = 0.0
     u1 = 0.0
     for k in range(2):
         g = -1.0 if k == 0 else 1.0
         start = -g * u_star if single else arc_u(theta[k], g, two_alpha)
-        u = arc_maximum(g, start, 0 if single else n_search, m, r, ca, sa, phi0, pc, ps,
-                        fab[8], fab[9])
+        u = arc_maximum(g, start, 0 if single else n_search, maxit, m, r, ca, sa, fab)
         theta[k] = 0.5 * (two_alpha + u)
         if k == 0:
             u0 = u
@@ -630,7 +645,7 @@ def yield_value(sxx, syy, sxy, fab, beta, n_search, theta):
     """
     m, r, ca, sa = stress_frame(sxx, syy, sxy)
     two_alpha = np.arctan2(sa, ca)
-    u0, u1 = arc_maxima(m, r, ca, sa, two_alpha, fab, n_search, theta)
+    u0, u1 = arc_maxima(m, r, ca, sa, two_alpha, fab, n_search, NEWTON_MAXIT_PLANE, theta)
     hk0, _, _ = _h_on_arc(u0, -1.0, m, r, ca, sa, fab[0], fab[1], fab[2], fab[8], fab[9])
     hk1, _, _ = _h_on_arc(u1, 1.0, m, r, ca, sa, fab[0], fab[1], fab[2], fab[8], fab[9])
     s = np.hypot(m, r)
@@ -654,8 +669,7 @@ def yield_and_flow(sxx, syy, sxy, fab, beta, search, n_search, theta, pl, yf):
         g = -1.0 if k == 0 else 1.0
         u = arc_u(theta[k], g, two_alpha)
         if search:
-            u = arc_maximum(g, u, n_search, m, r, ca, sa, fab[0], fab[1], fab[2], fab[8],
-                            fab[9])
+            u = arc_maximum(g, u, n_search, NEWTON_MAXIT_PLANE, m, r, ca, sa, fab)
             theta[k] = 0.5 * (two_alpha + u)
         plane_terms(u, g, m, r, ca, sa, fab, pl, k)
     h0 = pl[0, PL_H]
