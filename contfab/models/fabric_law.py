@@ -67,6 +67,7 @@ import numpy as np
 from numba import njit
 
 from contfab.fabric import project_admissible
+from contfab.tensors import hypot
 from dem.conventions import admissibility_margin
 
 LAW_BALANCE = 0
@@ -147,7 +148,7 @@ def _gram_positive(m, dx, dy, gram, dgram):
 
     ``gram`` (3, 3) ← P; ``dgram`` (3, 3, 3) ← ∂P_ij/∂(m, dx, dy)_v at [i, j, v].
     """
-    r = np.hypot(dx, dy)
+    r = hypot(dx, dy)
     i0, i1, i2, j1, j2, i0m, i1m, i2m, i0r, i1r, i2r = _moments(m, r)
     if r > 0.0:
         c = dx / r
@@ -293,15 +294,15 @@ def relaxation_step(a, bc, bs, dexx, deyy, dgxy, a_crit, b_ratio, rate, q, dq):
     ``dq`` (4, 3) ← its derivatives in (Δεxx, Δεyy, Δγxy, c) (zero at Δεp = 0)."""
     dx = 0.5 * (dexx - deyy)
     dy = 0.5 * dgxy
-    r = np.hypot(dx, dy)
+    r = hypot(dx, dy)
     dq[:, :] = 0.0
     if r == 0.0:
         q[0] = a
         q[1] = bc
         q[2] = bs
         return
-    e = np.exp(-rate * 2.0 * r)
     w = -np.expm1(-rate * 2.0 * r)
+    e = 1.0 - w          # exp(-2 k r), to round-off (it enters only the derivatives)
     # Compression axis θc: the minor principal direction of Δεp, so 2θc = angle(dx, dy) + π.
     b_crit = b_ratio * a_crit
     cx = dx / r

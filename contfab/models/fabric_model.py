@@ -89,7 +89,7 @@ from contfab.models.slip_planes import (N_P, N_PL, N_YF, PL_DT, PL_H, PL_HP, PL_
                                         YF_TRS, arc_maxima, fabric_terms,
                                         fabric_terms_jacobian, single_maximum, stress_frame,
                                         yield_and_flow, yield_value)
-from contfab.tensors import isotropic_stiffness_into, rotate
+from contfab.tensors import hypot, isotropic_stiffness_into, rotate
 
 STATUS_PROJECTED = 3
 """Plastic (face or apex) and the fabric had to be projected onto the admissible set
@@ -301,7 +301,7 @@ def _dilatancy_range(c, a, bc, bs, prm, dpz):
     """(sin ψ̄, sin ψ_min) at c: the isotropic part of ψ(θ) and its smallest value over planes."""
     phi0, pc, ps, psi0, qc, qs, _, _, phi_lo, phi_hi = fabric_terms(c, a, bc, bs, prm, dpz)
     phi = min(max(phi0, phi_lo), phi_hi)
-    amp = np.hypot(qc, qs)
+    amp = hypot(qc, qs)
     return np.sin(min(max(psi0, -phi), phi)), np.sin(max(psi0 - amp, -phi_hi))
 
 
@@ -320,7 +320,7 @@ def _initial_guess(c_n, qn, prm, sc, planes):
     psi = min(max(psi0, -phi), phi)
     m = 0.5 * (ttr[0] + ttr[1])
     d = 0.5 * (ttr[0] - ttr[1])
-    r = np.hypot(d, ttr[2])
+    r = hypot(d, ttr[2])
     ca = d / r if r > 0.0 else 1.0
     sa = ttr[2] / r if r > 0.0 else 0.0
     sphi = np.sin(phi)
@@ -613,7 +613,7 @@ def _planes_are_maxima(prm, sc):
     searched[0] = sc.v[V_THETA][0]
     searched[1] = sc.v[V_THETA][1]
     f = yield_value(x[0], x[1], x[2], fab, prm[16], int(prm[17]), searched)
-    s = np.hypot(0.5 * (x[0] + x[1]), np.hypot(0.5 * (x[0] - x[1]), x[2]))
+    s = hypot(0.5 * (x[0] + x[1]), hypot(0.5 * (x[0] - x[1]), x[2]))
     return abs(f) <= YIELD_TOL * s
 
 
@@ -769,7 +769,7 @@ def _continuation_return(rotated, c_n, qn, prm, sc):
         t = k / CONTINUATION_STEPS
         for j in range(3):
             ttr[j] = rotated[j] + t * (full[j] - rotated[j])
-        s_ref = np.hypot(0.5 * (ttr[0] + ttr[1]), np.hypot(0.5 * (ttr[0] - ttr[1]), ttr[2]))
+        s_ref = hypot(0.5 * (ttr[0] + ttr[1]), hypot(0.5 * (ttr[0] - ttr[1]), ttr[2]))
         if k == 1:
             _initial_guess(c_n, qn, prm, sc, True)
         face, projected, ridge = _face_return(c_n, qn, prm, sc, s_ref)
@@ -835,7 +835,7 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
     state[i, 2] = q0
     state[i, 3] = bc
     state[i, 4] = bs
-    s_ref = np.hypot(0.5 * (ttr[0] + ttr[1]), np.hypot(0.5 * (ttr[0] - ttr[1]), ttr[2]))
+    s_ref = hypot(0.5 * (ttr[0] + ttr[1]), hypot(0.5 * (ttr[0] - ttr[1]), ttr[2]))
     if f_tr <= YIELD_TOL * s_ref:
         stress[i, 0] = ttr[0]
         stress[i, 1] = ttr[1]
@@ -845,7 +845,7 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
         return
     qs = (q0, bc, bs)
     p_tr = -0.5 * (ttr[0] + ttr[1])
-    r_tr = np.hypot(0.5 * (ttr[0] - ttr[1]), ttr[2])
+    r_tr = hypot(0.5 * (ttr[0] - ttr[1]), ttr[2])
     # The apex first, as tier 1: at c_apex, C⁻¹σ_tr at least as dilatant as the flow (only
     # possible where G P_tr <= K R_tr, as |sin ψ| < 1).
     c_apex = c_n * np.exp(p_tr / bulk)
@@ -915,7 +915,7 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
     else:
         status[i] = STATUS_FAILED
         return
-    state[i, 0] = state_n[i, 0] + np.hypot(pxx - pyy, pgg)
+    state[i, 0] = state_n[i, 0] + hypot(pxx - pyy, pgg)
     state[i, 1] = c1
     # Φ's (admissible) output; on the face it equals x[5:8] to the solve's tolerance.
     fq = sc.v[V_FQ]

@@ -69,6 +69,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from contfab.tensors import hypot
+
 # The six angle coefficients p = (φ0, pc, ps, ψ0, qc, qs) of φ(θ) = φ0 + pc cos 2θ + ps sin 2θ
 # and ψ(θ) = ψ0 + qc cos 2θ + qs sin 2θ (:func:`fabric_terms`): c, A, Bc, Bs act only through
 # them, so derivatives are taken in p (row-major (3, 6) blocks for N).
@@ -112,7 +114,7 @@ def _kink(c2, s2, phi0, pc, ps, phi_lo, phi_hi):
     one (wrapped to (-π, π]; inf if φ_raw reaches neither bound), s = ±1 the direction of
     θ toward its free side (φ_min < φ_raw < φ_max).
     """
-    rho = np.hypot(pc, ps)
+    rho = hypot(pc, ps)
     best = np.inf
     slope = 0.0
     bound = 0.0
@@ -162,7 +164,7 @@ def single_maximum(m, r, phi0, pc, ps, phi_lo, phi_hi):
     strictly concave, then falls along the arc: one maximum (possibly at an end). With
     ρ = 0 (φ independent of θ) this holds wherever R > 0.
     """
-    rho = np.hypot(pc, ps)
+    rho = hypot(pc, ps)
     if r <= 0.0 or has_kinks(phi0, rho, phi_lo, phi_hi):
         return False
     t0 = np.tan(phi0)
@@ -346,7 +348,7 @@ def _slip_angle(sq, sp, cp):
     num = sin ψ cos φ, den = 1 - sin ψ sin φ, ρ = hypot(num, den)."""
     num = sq * cp
     den = 1.0 - sq * sp
-    rho = np.hypot(num, den)
+    rho = hypot(num, den)
     return num / rho, den / rho, rho
 
 
@@ -573,7 +575,7 @@ def fabric_terms(c, a, bc, bs, prm, dpz):
     ps = dpz[2, 2] * bc + dpz[2, 3] * bs
     qc = dpz[4, 2] * bc + dpz[4, 3] * bs
     qs = dpz[5, 2] * bc + dpz[5, 3] * bs
-    return phi0, pc, ps, psi0, qc, qs, np.hypot(pc, ps), prm[4], prm[6], prm[7]
+    return phi0, pc, ps, psi0, qc, qs, hypot(pc, ps), prm[4], prm[6], prm[7]
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
@@ -581,7 +583,7 @@ def stress_frame(sxx, syy, sxy):
     """(m, R, cos 2α, sin 2α): mean stress, deviator radius, major principal direction."""
     m = 0.5 * (sxx + syy)
     d = 0.5 * (sxx - syy)
-    r = np.hypot(d, sxy)
+    r = hypot(d, sxy)
     if r > 0.0:
         return m, r, d / r, sxy / r
     return m, r, 1.0, 0.0
@@ -648,7 +650,7 @@ def yield_value(sxx, syy, sxy, fab, beta, n_search, theta):
     u0, u1 = arc_maxima(m, r, ca, sa, two_alpha, fab, n_search, NEWTON_MAXIT_PLANE, theta)
     hk0, _, _ = _h_on_arc(u0, -1.0, m, r, ca, sa, fab[0], fab[1], fab[2], fab[8], fab[9])
     hk1, _, _ = _h_on_arc(u1, 1.0, m, r, ca, sa, fab[0], fab[1], fab[2], fab[8], fab[9])
-    s = np.hypot(m, r)
+    s = hypot(m, r)
     w0 = 0.5 if s == 0.0 else 1.0 / (1.0 + np.exp(beta * (hk1 - hk0) / s))
     return w0 * hk0 + (1.0 - w0) * hk1
 
@@ -674,7 +676,7 @@ def yield_and_flow(sxx, syy, sxy, fab, beta, search, n_search, theta, pl, yf):
         plane_terms(u, g, m, r, ca, sa, fab, pl, k)
     h0 = pl[0, PL_H]
     h1 = pl[1, PL_H]
-    s = np.hypot(m, r)
+    s = hypot(m, r)
     # Softmax of z_k = β h_k / s over two arcs: w0 = 1/(1 + exp(z1 - z0)), dw0 = w0 w1 d(z0 - z1).
     if s > 0.0:
         w0 = 1.0 / (1.0 + np.exp(beta * (h1 - h0) / s))
