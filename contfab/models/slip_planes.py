@@ -220,7 +220,8 @@ def _corner_on_arc(u, g, m, r, ca, sa, slope, bound, side):
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def arc_maximum(g, u0, n_search, maxit, m, r, ca, sa, fab):
-    """u of the maximum of h over the arc of sign g (u in [0, π] for g < 0, [-π, 0] else).
+    """(u, h(u)): the maximum of h over the arc of sign g (u in [0, π] for g < 0, [-π, 0]
+    else), h as :func:`_refine_on_arc` gives it.
 
     With ``n_search`` > 0: h on that many evenly spaced points and on the arc's two ends
     (τ = 0, the principal planes: h = tan φ σ1 at u = 0, tan φ σ2 at u = ±π, where a
@@ -241,8 +242,8 @@ def arc_maximum(g, u0, n_search, maxit, m, r, ca, sa, fab):
         lo = -np.pi
         hi = 0.0
     if n_search == 0:
-        return _refine_on_arc(g, min(max(u0, lo), hi), lo, hi, kinks, maxit, m, r, ca, sa, phi0, pc,
-                              ps, phi_lo, phi_hi)
+        return _refine_on_arc(g, min(max(u0, lo), hi), lo, hi, kinks, maxit, m, r, ca, sa,
+                              phi0, pc, ps, phi_lo, phi_hi)
     du = (hi - lo) / n_search
     h1 = -np.inf
     h2 = -np.inf
@@ -280,15 +281,15 @@ def arc_maximum(g, u0, n_search, maxit, m, r, ca, sa, fab):
         v_prev = v_cur
         v_cur = v_next
         u_cur = u_next
-    u = _refine_on_arc(g, u1, max(lo, u1 - du), min(hi, u1 + du), kinks, maxit, m, r, ca, sa, phi0,
-                       pc, ps, phi_lo, phi_hi)
+    u, h = _refine_on_arc(g, u1, max(lo, u1 - du), min(hi, u1 + du), kinks, maxit, m, r, ca,
+                          sa, phi0, pc, ps, phi_lo, phi_hi)
     if h2 > -np.inf:
-        ub = _refine_on_arc(g, u2, max(lo, u2 - du), min(hi, u2 + du), kinks, maxit, m, r, ca, sa,
-                            phi0, pc, ps, phi_lo, phi_hi)
-        if (_h_on_arc(ub, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)[0]
-                > _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)[0]):
+        ub, hb = _refine_on_arc(g, u2, max(lo, u2 - du), min(hi, u2 + du), kinks, maxit, m, r,
+                                ca, sa, phi0, pc, ps, phi_lo, phi_hi)
+        if hb > h:
             u = ub
-    return u
+            h = hb
+    return u, h
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
@@ -307,22 +308,31 @@ def _end_value(u, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def _refine_on_arc(g, u, lo, hi, kinks, maxit, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
-    """The maximum of h in [lo, hi] from u: Newton on ∂h/∂u = 0, safeguarded by bisection
-    on the sign of ∂h/∂u (a Newton step below PLANE_LAST_STEP is the last; at most ``maxit``
-    steps). Where φ(θ)
-    reaches a clamp (``kinks``), h = |τ| + tan(clamp(φ_raw)) σn has a kink at the boundary
-    and the maximum can sit on it (a corner, ∂h/∂u jumping from + to -): a step that
-    crosses a boundary stops there if it is a corner maximum (:func:`_corner_on_arc`)."""
+    """(u, h): the maximum of h in [lo, hi] from u: Newton on ∂h/∂u = 0, safeguarded by
+    bisection on the sign of ∂h/∂u (a Newton step below PLANE_LAST_STEP is the last; at most
+    ``maxit`` steps). Where φ(θ) reaches a clamp (``kinks``), h = |τ| + tan(clamp(φ_raw)) σn
+    has a kink at the boundary and the maximum can sit on it (a corner, ∂h/∂u jumping from
+    + to -): a step that crosses a boundary stops there if it is a corner maximum
+    (:func:`_corner_on_arc`).
+
+    h is the value at the returned u: evaluated there, or — after a last step δ taken
+    without another evaluation, where h is smooth (no ``kinks``) — h + h_u δ + ½ h_uu δ²
+    from the step's start, exact to |h_uuu| δ³/6 (δ < PLANE_LAST_STEP: below round-off;
+    after ``maxit`` steps short of convergence the same second-order estimate)."""
+    h = 0.0
+    hu = 0.0
+    huu = 0.0
+    delta = 0.0
     for _ in range(maxit):
-        _, hu, huu = _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)
+        h, hu, huu = _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)
         if huu < 0.0 and abs(hu) < PLANE_TOL * -huu:   # the Newton step is below tolerance
-            return u
+            return u, h
         if hu > 0.0:
             lo = u
         elif hu < 0.0:
             hi = u
         else:
-            return u
+            return u, h
         un = u - hu / huu if huu < 0.0 else 0.5 * (lo + hi)
         newton = huu < 0.0 and lo < un < hi
         if not newton:
@@ -334,12 +344,14 @@ def _refine_on_arc(g, u, lo, hi, kinks, maxit, m, r, ca, sa, phi0, pc, ps, phi_l
                                           phi_lo, phi_hi)
             if d * (un - u) > 0.0 and abs(d) < abs(un - u) \
                     and _corner_on_arc(u + d, g, m, r, ca, sa, slope, bound, side):
-                return u + d
-        step = abs(un - u)
+                return u + d, _h_on_arc(u + d, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)[0]
+        delta = un - u
         u = un
-        if step < PLANE_TOL or (newton and step < PLANE_LAST_STEP):
+        if abs(delta) < PLANE_TOL or (newton and abs(delta) < PLANE_LAST_STEP):
             break
-    return u
+    if kinks:    # the last step may have crossed a kink of h: no Taylor estimate across it
+        return u, _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi)[0]
+    return u, h + (hu + 0.5 * huu * delta) * delta
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
@@ -608,7 +620,7 @@ def arc_u(theta, g, two_alpha):
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def arc_maxima(m, r, ca, sa, two_alpha, fab, n_search, maxit, theta):
-    """(u0, u1): the maxima of both arcs (:func:`arc_maximum`, refinements of at most
+    """(h0, h1): the maximum values of both arcs (:func:`arc_maximum`, refinements of at most
     ``maxit`` steps) of the stress (m, R, 2α); ``theta`` (2,) in/out: the planes (warm
     starts in, maximizers out).
 
@@ -625,18 +637,18 @@ def arc_maxima(m, r, ca, sa, two_alpha, fab, n_search, maxit, theta):
         u_star = 0.5 * np.pi - phi0
     else:
         u_star = np.arctan2(1.0, np.tan(phi0))
-    u0 = 0.0
-    u1 = 0.0
+    h0 = 0.0
+    h1 = 0.0
     for k in range(2):
         g = -1.0 if k == 0 else 1.0
         start = -g * u_star if single else arc_u(theta[k], g, two_alpha)
-        u = arc_maximum(g, start, 0 if single else n_search, maxit, m, r, ca, sa, fab)
+        u, h = arc_maximum(g, start, 0 if single else n_search, maxit, m, r, ca, sa, fab)
         theta[k] = 0.5 * (two_alpha + u)
         if k == 0:
-            u0 = u
+            h0 = h
         else:
-            u1 = u
-    return u0, u1
+            h1 = h
+    return h0, h1
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
@@ -647,9 +659,7 @@ def yield_value(sxx, syy, sxy, fab, beta, n_search, theta):
     """
     m, r, ca, sa = stress_frame(sxx, syy, sxy)
     two_alpha = np.arctan2(sa, ca)
-    u0, u1 = arc_maxima(m, r, ca, sa, two_alpha, fab, n_search, NEWTON_MAXIT_PLANE, theta)
-    hk0, _, _ = _h_on_arc(u0, -1.0, m, r, ca, sa, fab[0], fab[1], fab[2], fab[8], fab[9])
-    hk1, _, _ = _h_on_arc(u1, 1.0, m, r, ca, sa, fab[0], fab[1], fab[2], fab[8], fab[9])
+    hk0, hk1 = arc_maxima(m, r, ca, sa, two_alpha, fab, n_search, NEWTON_MAXIT_PLANE, theta)
     s = hypot(m, r)
     w0 = 0.5 if s == 0.0 else 1.0 / (1.0 + np.exp(beta * (hk1 - hk0) / s))
     return w0 * hk0 + (1.0 - w0) * hk1
@@ -671,7 +681,7 @@ def yield_and_flow(sxx, syy, sxy, fab, beta, search, n_search, theta, pl, yf):
         g = -1.0 if k == 0 else 1.0
         u = arc_u(theta[k], g, two_alpha)
         if search:
-            u = arc_maximum(g, u, n_search, NEWTON_MAXIT_PLANE, m, r, ca, sa, fab)
+            u, _ = arc_maximum(g, u, n_search, NEWTON_MAXIT_PLANE, m, r, ca, sa, fab)
             theta[k] = 0.5 * (two_alpha + u)
         plane_terms(u, g, m, r, ca, sa, fab, pl, k)
     h0 = pl[0, PL_H]
