@@ -288,7 +288,7 @@ def _invert3(x, out):
             out[i, j] *= inv_det
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def relaxation_step(a, bc, bs, dexx, deyy, dgxy, a_crit, b_ratio, rate, q, dq):
     """One step of the relaxation law (law 1, module doc): ``q`` (3,) ← the fabric after it,
     ``dq`` (4, 3) ← its derivatives in (Δεxx, Δεyy, Δγxy, c) (zero at Δεp = 0)."""

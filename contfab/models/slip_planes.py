@@ -388,7 +388,7 @@ def _branch_slopes(g, sn, m, tau, phi, p_t, p_tt):
     return t, sec2, t_t, h_t, h_tt
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
     """Every term of the arc-g maximum near u, written to row k of ``pl`` (layout PL_*).
 
@@ -665,7 +665,7 @@ def yield_value(sxx, syy, sxy, fab, beta, n_search, theta):
     return w0 * hk0 + (1.0 - w0) * hk1
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def yield_and_flow(sxx, syy, sxy, fab, beta, search, n_search, theta, pl, yf):
     """f, N, tr N and their σ- and c-derivatives into ``yf`` (layout YF_*; module doc).
 
