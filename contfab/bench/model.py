@@ -13,21 +13,32 @@ rate is also given as a ratio to it. Timings are medians of ``--repeats`` runs o
 process's CPU time (both sides are single-threaded, so this is the per-core figure even
 when other jobs share the cores; ``*_wall`` figures give the wall-clock rate too).
 
-Measured (updates/s per core, ``python -m contfab.cli bench model --json`` with nice -n 10
-on the shared 2-core machine, load ~3-5, median of 3 runs interleaved with main's code in
-the same session, 2026-12-01; main = f48fced, branch = model at 9ccd7eb):
+Measured (updates/s per core, ``python -m contfab.cli bench model --json`` with nice -n 5
+on the shared 2-core machine, load ~3, 3 runs interleaved with main's code in the same
+session, 2026-12-02; main = e10f799, branch = model at 5d04814; medians in brackets):
 
-* tier0: main 2.55e7, 2.41e7, 2.38e7 (median 2.41e7); branch 2.31e7, 2.35e7, 2.35e7 (2.35e7)
-* tier2: main 2.10e5, 2.08e5, 2.18e5 (2.10e5); branch 2.73e5, 2.82e5, 2.76e5 (2.76e5)
-* tier2_aniso: main 2.16e5, 2.01e5, 2.11e5 (2.11e5); branch 2.68e5, 2.65e5, 2.75e5 (2.68e5)
+* tier0: main 1.65e7, 1.64e7, 1.60e7 (1.64e7); branch 1.90e7, 1.45e7, 1.69e7 (1.69e7)
+  (tier 0 code unchanged: load noise)
+* tier2: main 2.16e5, 2.02e5, 2.13e5 (2.13e5); branch 3.20e5, 2.78e5, 2.83e5 (2.83e5)
+* tier2_aniso: main 1.86e5, 1.85e5, 2.19e5 (1.86e5); branch 2.97e5, 2.88e5, 3.01e5 (2.97e5)
 
-Where a tier-2 update's ~3.9 µs go (one pass of each stage added in turn, numba, over the
-bench's 120 000 points at 9ccd7eb; iso / aniso): trial and rotation 0.26 / 0.27, elastic
-check 0.57 / 0.59 (the plane search; no grid where slip_planes.single_maximum holds),
-start of the solve 1.02 / 0.98 (one yield/flow evaluation, the fabric law twice, the
-planes refined), local Newton 1.44 / 1.67 (2.0 / 2.05 evaluations; each yield/flow 0.37,
-residuals 0.18, 8x8 LU 0.25), maxima check 0.07 / 0.04, fabric and tangent 0.59 / 0.29
-(noisy). The 5e5 target of issue 3 is not reached.
+(The kernel alone on the same 100 000 points, minimum CPU time of 9 calls, interleaved with
+main at lower load: main 4.2-4.4 µs, branch 2.7-2.8 µs per update, both cases, i.e.
+3.6e5/s.)
+
+Where a tier-2 update's ~3.3 µs went at 10a6702, before the residuals and yield/flow were
+inlined (numba, one component at a time over the bench's points; noisy to ±20 %; inlining
+then removed ~0.5 µs of argument passing spread over them): trial and rotation 0.06; the
+elastic check 0.45 (the plane search at σ_tr: about 3 evaluations of h per arc from u*,
+none for the final values); three yield/flow
+evaluations (the start's, two of Newton: 2.0 / 2.01 per update) 0.38-0.47 each, of which
+plane_terms ~0.15 per plane; five fabric steps 0.07 each; two 8x8 LU 0.09 each; five
+solves 0.045 each (three for the tangent); the rest (the residuals' assembly, the start's
+arithmetic and its one plane step per arc, the planes' check, the state) ~0.8. In the
+profile (perf, tier2_aniso) libm takes 19 % (sincos 7, tan 5, atan2 2.6, exp/expm1 2.6,
+hypot 0.8). The 5e5 target of issue 3 is not reached: the yield/flow evaluations, the
+LU/solves, the fabric steps and the plane search alone sum to ~2 µs, so reaching 2 µs
+needs fewer yield/flow evaluations per update (or a cheaper one), not more trimming.
 """
 from __future__ import annotations
 
