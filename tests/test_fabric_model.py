@@ -3,7 +3,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import example, given, settings, strategies as st
 
 from conftest import fabric_terms, model_params, stress_at, update
 from contfab import material_point as mp
@@ -230,6 +230,12 @@ def _update_cutting(prm, stress, state, de, dw, depth=0):
 @settings(max_examples=5, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), scale=st.floats(-4.0, -2.5),
        law=st.sampled_from(["balance", "balance mean-field", "relaxation"]))
+@example(seed=7517, scale=-2.5, law="relaxation").xfail(
+    raises=AssertionError,
+    reason="known defect (issue 3, found by hypothesis 2026-12-02): at step 949 one point "
+           "(P = 3101 p_ref, R/P = 0.453, B = 0.222) returns status -1 for the full increment "
+           "and again for the second half after every halving, down to depth 12 (a ridge "
+           "the local solve cannot cross); reproduced on main before and after the speed-up")
 def test_fabric_admissible_on_every_step_of_1e5_random_increments(seed, scale, law):
     # Acceptance 4: 100 points x 1000 steps of random strain increments and spins.
     coeffs = {"balance": {}, "balance mean-field": dict(kappa_a=1.0, k_c=1.0, k_o=1.0),
