@@ -26,6 +26,7 @@ wall time and cost ratios then count the resumed part only (``resumed_from_t``).
 """
 from __future__ import annotations
 
+import csv
 import time
 from pathlib import Path
 
@@ -98,13 +99,10 @@ def _rows_before(curve: Path, solver: FexdemSolver, measure) -> list[list]:
     t = solver.committed.t
     rows = []
     if curve.exists():
-        with curve.open() as f:
-            next(f)
-            for line in f:
-                cells = line.rstrip("\n").split(",")
-                if float(cells[1]) < t - 1e-12:
-                    rows.append([cells[0], float(cells[1]), int(cells[2]), int(cells[3]),
-                                 *map(float, cells[4:])])
+        with curve.open(newline="") as f:
+            for r in list(csv.reader(f))[1:]:           # stage, t, iterations, cuts, measures
+                if float(r[1]) < t - 1e-12:
+                    rows.append([r[0], float(r[1]), int(r[2]), int(r[3]), *map(float, r[4:])])
     last = solver.records[-1]
     return rows + [[last.stage, t, last.iterations, last.cuts, *measure(solver).values()]]
 
@@ -151,7 +149,8 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
         mat = DemMaterial(cells, disc, params, p_unit=p0, tangent=TANGENT,
                           tangent_tier=params.tier if params.tier in (1, 2) else 2)
         stress0, state0 = mat.initial()
-        outputs = analysis.Outputs(out, f"{case}_dem", curve_axes=(xcol, ycol), curve_each_step=True)
+        outputs = analysis.Outputs(out, f"{case}_dem", curve_axes=(xcol, ycol),
+                                   curve_each_step=True)
         if resume:
             solver, start = FexdemSolver.resume(disc, mat, DEM_NEWTON, out / "cells", scene.stage)
             report["resumed_from_t"] = start[0]

@@ -374,7 +374,8 @@ def _cutting_plane_guess(c_n, qn, fab, prm, sc, hardening):
     motion another): the solve then starts ~1e-5 from the solution at the bench's increments
     and takes two evaluations instead of three (without the plane step: 2.7-2.9; refining
     the planes to convergence instead costs 3.5 more evaluations of h per point and saves
-    no evaluation of the solve, measured on the bench's points). The plain step where the hardening one is undefined, and
+    no evaluation of the solve, measured on the bench's points). The plain step where the
+    hardening one is undefined, and
     without ``hardening`` (the plain cutting-plane step alone: σ, Δγ, c, fabric at q_n,
     planes untouched); False (the unknowns untouched) where ∂f/∂σ · C N <= 0."""
     bulk = prm[0]

@@ -170,7 +170,8 @@ def size_study(fast: bool) -> Study:
         run_point=run_point, evaluate=evaluate_size, default={"n": DEFAULTS.n},
         quantities=QUANTITIES, cost_unit="CPU s per unit strain",
         error_meaning="steady-state scatter (std / mean; B: std / mean A)",
-        settings={"strain": strain, "steady_from": steady, "inertial": 1e-2, "kappa": 1e3, "dem_code": dem_code_digest()})
+        settings={"strain": strain, "steady_from": steady, "inertial": 1e-2, "kappa": 1e3,
+                  "dem_code": dem_code_digest()})
 
 
 def inertial_study(fast: bool) -> Study:
@@ -184,7 +185,8 @@ def inertial_study(fast: bool) -> Study:
         run_point=run_point, evaluate=evaluate_inertial, default={"inertial": DEFAULTS.inertial},
         quantities=("RP", "c", "z"), cost_unit="CPU s per unit strain",
         error_meaning="|steady mean - extrapolated I→0 limit| / limit",
-        settings={"strain": strain, "steady_from": steady, "n": n, "kappa": 1e3, "dem_code": dem_code_digest()})
+        settings={"strain": strain, "steady_from": steady, "n": n, "kappa": 1e3,
+                  "dem_code": dem_code_digest()})
 
 
 def stiffness_study(fast: bool) -> Study:
@@ -198,4 +200,5 @@ def stiffness_study(fast: bool) -> Study:
         run_point=run_point, evaluate=evaluate_stiffness, default={"kappa": DEFAULTS.kappa},
         quantities=("RP", "c", "z"), cost_unit="CPU s per unit strain",
         error_meaning="|steady mean - extrapolated κ→∞ limit| / limit",
-        settings={"strain": strain, "steady_from": steady, "n": n, "inertial": 1e-2, "dem_code": dem_code_digest()})
+        settings={"strain": strain, "steady_from": steady, "n": n, "inertial": 1e-2,
+                  "dem_code": dem_code_digest()})
