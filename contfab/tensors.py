@@ -14,8 +14,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from contfab.jit_flags import KERNEL
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+
+@njit(**KERNEL, inline="always")
 def hypot(x, y):
     """sqrt(x² + y²) without overflow or underflow, fast: a plain sqrt of the sum of squares
     where that sum is well inside the normal range (within an ulp of np.hypot: 2.2e-16

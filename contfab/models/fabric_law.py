@@ -56,8 +56,8 @@ rate is removed, discretized (like the stress return) as the closest-point proje
 onto K after the step (:func:`contfab.fabric.project_admissible`, θp kept). Every such
 projection is reported to the caller (status 3 of the tier-2 kernel), never silent.
 
-The kernels but :func:`drive_fabric` allocate no array: compiled with ``_nrt=False``
-(:mod:`contfab.models.fabric_model`, "Compilation").
+The kernels but :func:`drive_fabric` allocate no array: compiled with
+:data:`contfab.jit_flags.KERNEL`.
 """
 from __future__ import annotations
 
@@ -67,6 +67,7 @@ import numpy as np
 from numba import njit
 
 from contfab.fabric import project_admissible
+from contfab.jit_flags import KERNEL
 from contfab.tensors import hypot
 from dem.conventions import admissibility_margin
 
@@ -77,7 +78,7 @@ LAW_NAMES = {LAW_BALANCE: "balance", LAW_RELAXATION: "relaxation"}
 SQRT3_4 = np.sqrt(3.0) / 4.0
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def positive_part_moments(m, r):
     """(I0, I1, I2) with I_k = ∫_{-π}^{π} [m + r cos x]+ cos(kx) dx, r >= 0, in closed form.
 
@@ -89,7 +90,7 @@ def positive_part_moments(m, r):
     return i[0], i[1], i[2]
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _moments(m, r):
     """I0, I1, I2 (:func:`positive_part_moments`), I1/r, I2/r and ∂I_k/∂m, ∂I_k/∂r.
 
@@ -120,7 +121,7 @@ def _moments(m, r):
             2.0 * s0, x0 + s0 * c0, s0 + s3 / 3.0)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def rotate_fabric(bc, bs, dspin):
     """(Bc, Bs) after a rigid rotation by ``dspin``: θp += dspin, B unchanged.
 
@@ -141,7 +142,7 @@ def rotate_fabric(bc, bs, dspin):
     return 0.0, 0.0
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _gram_positive(m, dx, dy, gram, dgram):
     """∫_0^π [d_n]+ w_i w_j dθ, w = (1, cos 2θ, sin 2θ), d_n = m + dx c2 + dy s2, and their
     derivatives in (m, dx, dy).
@@ -204,7 +205,7 @@ MASS = (np.pi, 0.5 * np.pi, 0.5 * np.pi)
 STERIC = (np.pi / 6.0, SQRT3_4, SQRT3_4)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _d_moment(i, j, v):
     """∂/∂(m, dx, dy)_v of ∫_0^π d_n w_i w_j dθ (exact; d_n is linear in (m, dx, dy))."""
     if v == 0:
@@ -217,7 +218,7 @@ def _d_moment(i, j, v):
     return 0.0
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def balance_system(a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o, x, y, dxs, dys, gram,
                    dgram):
     """The step's linear system X q_{n+1} = y of law 0 (module doc), rows divided by M, and
@@ -270,7 +271,7 @@ def balance_system(a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o, x, y, dxs,
         dys[3, i] = g_c * qi0 / MASS[i]
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _invert3(x, out):
     """out = x⁻¹ for a 3x3 x (cofactors; used where det x >= 1)."""
     out[0, 0] = x[1, 1] * x[2, 2] - x[1, 2] * x[2, 1]
@@ -288,7 +289,7 @@ def _invert3(x, out):
             out[i, j] *= inv_det
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(**KERNEL, inline="always")
 def relaxation_step(a, bc, bs, dexx, deyy, dgxy, a_crit, b_ratio, rate, q, dq):
     """One step of the relaxation law (law 1, module doc): ``q`` (3,) ← the fabric after it,
     ``dq`` (4, 3) ← its derivatives in (Δεxx, Δεyy, Δγxy, c) (zero at Δεp = 0)."""
@@ -322,7 +323,7 @@ def relaxation_step(a, bc, bs, dexx, deyy, dgxy, a_crit, b_ratio, rate, q, dq):
         dq[2, i] = 0.5 * ddy
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(**KERNEL, inline="always")
 def fabric_step(a, bc, bs, dexx, deyy, dgxy, c, law, kappa_a, k_c, k_o, a_crit, b_ratio, rate,
                 q, dq, ws):
     """The fabric after the plastic increment (spin already applied).
@@ -349,7 +350,7 @@ def fabric_step(a, bc, bs, dexx, deyy, dgxy, c, law, kappa_a, k_c, k_o, a_crit, 
     return _project_step(q, dq)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _balance_step(a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o, q, dq, ws):
     """Law 0's step (:func:`balance_system`, solved): q and ∂q before any projection."""
     gram = ws.gram
@@ -374,7 +375,7 @@ def _balance_step(a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o, q, dq, ws):
             dq[v, i] = xi[i, 0] * tmp[0] + xi[i, 1] * tmp[1] + xi[i, 2] * tmp[2]
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _project_step(q, dq):
     """q ← its projection onto K, dq chained through it (:func:`_chain_projection`); whether
     it moved."""
@@ -384,7 +385,7 @@ def _project_step(q, dq):
     return moved
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _chain_projection(a, bc, bs, q, dq):
     """dq ← (∂ projection / ∂(A, Bc, Bs)) dq for the projection of (a, bc, bs) onto q.
 

@@ -56,12 +56,9 @@ and state and the elastic tangent; nothing non-finite is produced.
 
 **Compilation.** Every function here except the allocating ones (``_scratch``,
 ``_update_range``, ``update_points``), and those of :mod:`contfab.models.slip_planes` and
-:mod:`contfab.models.fabric_law` (but ``drive_fabric``), is compiled with numba's ``_nrt=False``:
-they take arrays and never allocate or return one, so numba's reference counting of each
-array argument at each call — an atomic incref/decref pair, about 5 ns per array per call,
-with tens of calls per point — is dropped (30 % of a tier-2 update, outputs bitwise
-unchanged). An allocation in such a function is a compile error, so the flag cannot hide a
-leak; ``_nrt`` is numba's own (underscored) switch for this.
+:mod:`contfab.models.fabric_law` (but ``drive_fabric``), is compiled with
+:data:`contfab.jit_flags.KERNEL`: no reference counting (they never allocate), FMA
+contraction (why, and what each flag gains: :mod:`contfab.jit_flags`).
 
 Inlined at numba's level (``inline="always"``): the LU and its solves (with a constant
 size, so they unroll), the residuals (``_residual``, ``_assemble``), the planes' check and
@@ -91,6 +88,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
+from contfab.jit_flags import KERNEL
 from contfab.models.cone import (STATUS_APEX, STATUS_ELASTIC, STATUS_FACE, STATUS_FAILED,
                                  _finish, _inputs_finite)
 from contfab.models.fabric_law import balance_work, fabric_step, rotate_fabric
@@ -123,11 +121,15 @@ PLANE_STEP_TOL = 1e-9
 """Local solve: the planes' own Newton steps (radians) at convergence (values exact to ~δθ²)."""
 CONTINUATION_STEPS = 4
 """Fallback of the local solve: trial stresses σ_n + (k/this) CΔε, k = 1..this, in turn."""
+PREDICTED_PLANE_STEP = 1e-2
+PREDICTED_F_GAP = 1e-6
+"""Elastic check from the predicted plane maxima (:func:`_trial_yield`): the largest plane
+step and the least |f|/|σ| (plus the prediction's error bound) it decides."""
 
 
 # --------------------------------------------------------------------------- small linear algebra
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(**KERNEL, inline="always")
 def _lu(a, piv, n):
     """In-place LU with partial pivoting of the leading n x n block of ``a``, PA = LU (L unit
     lower, row k swapped with piv[k] at step k); False if singular.
@@ -161,7 +163,7 @@ def _lu(a, piv, n):
     return True
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(**KERNEL, inline="always")
 def _lu_solve(lu, piv, b, n):
     """Solve A x = b in place with the factors of :func:`_lu` (leading n x n block): b ← P b,
     then L y = b forward and U x = y backward, each row's sum in a local (inlined like
@@ -205,7 +207,7 @@ def _scratch():
                    balance_work())
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(**KERNEL, inline="always")
 def _residual(x, c_n, qn, prm, search, sc, s_ref):
     """Residuals of the backward-Euler step at x = (σxx, σyy, σxy, Δγ, c, A, Bc, Bs) into
     row V_RES of ``sc.v`` and their Jacobian into ``sc.jac`` (planes condensed:
@@ -225,7 +227,7 @@ def _residual(x, c_n, qn, prm, search, sc, s_ref):
     return _assemble(x, c_n, qn, prm, yf, sc, s_ref, sc.v[V_RES], sc.jac)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(**KERNEL, inline="always")
 def _assemble(x, c_n, qn, prm, yf, sc, s_ref, res, jac):
     """The step's residuals (:func:`_residual`) at x into ``res[:8]`` and their Jacobian in
     x[:8] into ``jac[:8, :8]``, from the yield/flow terms ``yf``; (max |res[:8]|, whether Φ
@@ -306,7 +308,7 @@ def _assemble(x, c_n, qn, prm, yf, sc, s_ref, res, jac):
     return worst, projected
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _dilatancy_range(c, a, bc, bs, prm, dpz):
     """(sin ψ̄, sin ψ_min) at c: the isotropic part of ψ(θ) and its smallest value over planes."""
     phi0, pc, ps, psi0, qc, qs, _, _, phi_lo, phi_hi = fabric_terms(c, a, bc, bs, prm, dpz)
@@ -315,7 +317,7 @@ def _dilatancy_range(c, a, bc, bs, prm, dpz):
     return np.sin(min(max(psi0, -phi), phi)), np.sin(max(psi0 - amp, -phi_hi))
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _initial_guess(c_n, qn, prm, sc, planes):
     """Tier 1's closed-form coaxial return with the isotropic part of φ(θ), ψ(θ) at c_n and
     the fabric at its start value; with ``planes`` also the planes at tier 1's
@@ -356,8 +358,8 @@ def _initial_guess(c_n, qn, prm, sc, planes):
         theta[1] = alpha - 0.25 * np.pi + 0.5 * phi
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
-def _cutting_plane_guess(c_n, qn, fab, prm, sc, hardening):
+@njit(**KERNEL)
+def _cutting_plane_guess(c_n, qn, fab, prm, sc, hardening, have_terms):
     """One cutting-plane step from σ_tr (planes at their maxima from the elastic check), with
     the hardening of c and the fabric: f linearized in Δγ along σ = σ_tr - Δγ C N,
     c = c_n exp(-Δγ tr N), q = Φ(q_n, Δγ N, c),
@@ -377,15 +379,18 @@ def _cutting_plane_guess(c_n, qn, fab, prm, sc, hardening):
     no evaluation of the solve, measured on the bench's points). The plain step where the
     hardening one is undefined, and
     without ``hardening`` (the plain cutting-plane step alone: σ, Δγ, c, fabric at q_n,
-    planes untouched); False (the unknowns untouched) where ∂f/∂σ · C N <= 0."""
+    planes untouched); False (the unknowns untouched) where ∂f/∂σ · C N <= 0. With
+    ``have_terms`` the yield/flow terms at σ_tr and the planes are already in ``sc.yfs[0]``
+    and ``sc.planes[0:2]`` (:func:`_trial_yield`)."""
     bulk = prm[0]
     shear = prm[1]
     ttr = sc.v[V_TTR]
     x = sc.v[V_X]
     yf = sc.yfs[0]
     fq = sc.v[V_FQ]
-    yield_and_flow(ttr[0], ttr[1], ttr[2], fab, prm[16], False, 0, sc.v[V_THETA], sc.planes[0:2],
-                   yf)
+    if not have_terms:
+        yield_and_flow(ttr[0], ttr[1], ttr[2], fab, prm[16], False, 0, sc.v[V_THETA],
+                       sc.planes[0:2], yf)
     n0 = yf[YF_N]
     n1 = yf[YF_N + 1]
     n2 = yf[YF_N + 2]
@@ -471,11 +476,11 @@ def _cutting_plane_guess(c_n, qn, fab, prm, sc, hardening):
     x[7] = fq[2]
     m, r, ca, sa = stress_frame(x[0], x[1], x[2])
     fab1 = fabric_terms(c, fq[0], fq[1], fq[2], prm, sc.dpz)
-    arc_maxima(m, r, ca, sa, np.arctan2(sa, ca), fab1, 0, 1, theta)
+    arc_maxima(m, r, ca, sa, np.arctan2(sa, ca), fab1, 0, 1, theta, False)
     return True
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(**KERNEL, inline="always")
 def _plane_step(pl, k, dx, dpz):
     """The condensed step of plane k with the unknowns' step dx: δθ + θ_σ·dσ + θ_p·(∂p/∂z) dz."""
     d = pl[k, PL_DT] + pl[k, PL_TS] * dx[0] + pl[k, PL_TS + 1] * dx[1] + pl[k, PL_TS + 2] * dx[2]
@@ -485,7 +490,7 @@ def _plane_step(pl, k, dx, dpz):
     return d
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _ridge_residual(x, k, c_n, qn, prm, sc, s_ref):
     """Residuals of the ridge return at x = (σ, Δγ, c, A, Bc, Bs, λ) into row V_RESR of
     ``sc.v`` and their Jacobian into ``sc.jacr``.
@@ -544,7 +549,7 @@ def _ridge_residual(x, k, c_n, qn, prm, sc, s_ref):
     return max(worst, abs(res[8])), projected
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _ridge_newton(k, c_n, qn, prm, sc, s_ref):
     """Newton on the ridge residuals (:func:`_ridge_residual`) from row V_XR, the planes a,
     b and o moving with their condensed steps, backtracking on max |residual|: (converged
@@ -598,7 +603,7 @@ def _ridge_newton(k, c_n, qn, prm, sc, s_ref):
     return False, False
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(**KERNEL, inline="always")
 def _planes_are_maxima(prm, sc):
     """Whether the planes of a converged solve carry the arcs' maxima at its solution as the
     elastic check finds them: the plane search (``n_search`` grid points and the ends per
@@ -628,7 +633,7 @@ def _planes_are_maxima(prm, sc):
     return abs(f) <= YIELD_TOL * s
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _face_return(c_n, qn, prm, sc, s_ref):
     """The face solve from the unknowns and planes in ``sc.v`` (rows V_X, V_THETA): (converged
     to a valid face point whose planes are the arcs' maxima, fabric projected, on a ridge).
@@ -679,7 +684,7 @@ def _face_return(c_n, qn, prm, sc, s_ref):
     return _planes_are_maxima(prm, sc), projected, True
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _newton(c_n, qn, prm, sc, s_ref):
     """Newton on the step's residuals from the unknowns in row V_X: (converged to a valid
     face point, fabric projected).
@@ -764,7 +769,7 @@ def _newton(c_n, qn, prm, sc, s_ref):
     return False, False
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _continuation_return(rotated, c_n, qn, prm, sc):
     """The face solve by continuation in the trial stress, for increments too large for
     Newton from one start: the step's backward-Euler problem with σ_tr(t) = σ_n + t CΔε
@@ -793,7 +798,40 @@ def _continuation_return(rotated, c_n, qn, prm, sc):
 
 # --------------------------------------------------------------------------- one point
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
+def _trial_yield(fab, prm, n_search, sc):
+    """f(σ_tr) for the elastic check (σ_tr in row V_TTR, planes in/out in row V_THETA), and
+    whether ``sc.yfs[0]`` and ``sc.planes[0:2]`` now hold the yield/flow terms at σ_tr.
+
+    Where each arc has a single maximum (slip_planes.single_maximum), one plane step from u*
+    and the terms there (slip_planes.yield_and_flow: the predicted maxima, h + ½ h_θ δθ, or
+    h + h_θ δθ at an arc's end) decide the check when the prediction's error, below
+    |h_θθθ| δθ³/6 inside an arc and ½ |h_θθ| δθ² at an end (|h_θθ| <= 20 |σ| for
+    φ <= 60°), is far smaller than |f|: |f| > (PREDICTED_F_GAP + 50 δθ²) |σ| with
+    δθ <= PREDICTED_PLANE_STEP. The plastic branch then starts from those terms (the
+    cutting-plane step needs them at σ_tr anyway), so the trial's plane search takes one
+    step per arc instead of its three; elsewhere (near the surface, several maxima, large
+    plane steps) the exact search decides, as before. Measured on the bench's points: the
+    planes' step after one step from u* is 5e-5 (isotropic fabric) to 5e-4 (B/A = 0.25),
+    so every point there is decided by the prediction.
+    """
+    ttr = sc.v[V_TTR]
+    theta = sc.v[V_THETA]
+    if n_search > 0:
+        m, r, ca, sa = stress_frame(ttr[0], ttr[1], ttr[2])
+        if single_maximum(m, r, fab[0], fab[1], fab[2], fab[8], fab[9]):
+            arc_maxima(m, r, ca, sa, np.arctan2(sa, ca), fab, n_search, 1, theta, True)
+            yf = sc.yfs[0]
+            pl = sc.planes[0:2]
+            yield_and_flow(ttr[0], ttr[1], ttr[2], fab, prm[16], False, 0, theta, pl, yf)
+            dt = max(abs(pl[0, PL_DT]), abs(pl[1, PL_DT]))
+            if (dt <= PREDICTED_PLANE_STEP
+                    and abs(yf[YF_F]) > (PREDICTED_F_GAP + 50.0 * dt * dt) * hypot(m, r)):
+                return yf[YF_F], True
+    return yield_value(ttr[0], ttr[1], ttr[2], fab, prm[16], n_search, theta), False
+
+
+@njit(**KERNEL)
 def _elastic_strain(sxx, syy, sxy, bulk, shear):
     """C⁻¹σ (Voigt, engineering shear): tr = (σxx+σyy)/(2K), deviator /(2G), γ = σxy/G."""
     vol = 0.25 * (sxx + syy) / bulk
@@ -801,7 +839,7 @@ def _elastic_strain(sxx, syy, sxy, bulk, shear):
     return vol + dev, vol - dev, sxy / shear
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(**KERNEL, inline="always")
 def _tangent(lu, piv, dx, n, bulk, shear, s_ref, tangent, i):
     """tangent[i] ← ∂σ/∂Δε, the σ-rows of J⁻¹ [C/s_ref; 0] (J: the LU factors ``lu``, ``piv``
     of the converged n x n Jacobian; ``dx`` scratch), column by column."""
@@ -818,7 +856,7 @@ def _tangent(lu, piv, dx, n, bulk, shear, s_ref, tangent, i):
             tangent[i, k, j] = dx[k]
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status, sc):
     bulk = prm[0]
     shear = prm[1]
@@ -840,7 +878,7 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
     if n_search == 0:        # the tier-1 planes are the plane search's warm start
         _initial_guess(c_n, (q0, bc, bs), prm, sc, True)
     fab = fabric_terms(c_n, q0, bc, bs, prm, sc.dpz)
-    f_tr = yield_value(ttr[0], ttr[1], ttr[2], fab, prm[16], n_search, sc.v[V_THETA])
+    f_tr, have_terms = _trial_yield(fab, prm, n_search, sc)
     state[i, 0] = state_n[i, 0]
     state[i, 1] = c_n
     state[i, 2] = q0
@@ -876,7 +914,7 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
         near = f_tr <= CUTTING_PLANE_RANGE * s_ref
         theta = sc.v[V_THETA]
         theta_tr = (theta[0], theta[1])
-        if not (near and _cutting_plane_guess(c_n, qs, fab, prm, sc, True)):
+        if not (near and _cutting_plane_guess(c_n, qs, fab, prm, sc, True, have_terms)):
             _initial_guess(c_n, qs, prm, sc, False)
         face, projected, ridge = _face_return(c_n, qs, prm, sc, s_ref)
         if near and not face:
@@ -885,7 +923,7 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
             # reverse (each ~1e-4 of the steps of loose anisotropic states, measured)
             theta[0] = theta_tr[0]
             theta[1] = theta_tr[1]
-            if _cutting_plane_guess(c_n, qs, fab, prm, sc, False):
+            if _cutting_plane_guess(c_n, qs, fab, prm, sc, False, False):
                 face, projected, ridge = _face_return(c_n, qs, prm, sc, s_ref)
         if near and not face:
             _initial_guess(c_n, qs, prm, sc, True)

@@ -61,14 +61,15 @@ arc maxima obey the envelope theorem, ∂h_k/∂σ = ∂h/∂σ at fixed θ_k, a
 ∂h_k/∂σ = ∂h/∂σ + h_θ ∂α/∂σ, and not with p. The softmax weights are differentiated in
 full.
 
-Every kernel here takes arrays and allocates none: compiled with ``_nrt=False``
-(:mod:`contfab.models.fabric_model`, "Compilation").
+Every kernel here takes arrays and allocates none: compiled with
+:data:`contfab.jit_flags.KERNEL`.
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
+from contfab.jit_flags import KERNEL
 from contfab.tensors import hypot
 
 # The six angle coefficients p = (φ0, pc, ps, ψ0, qc, qs) of φ(θ) = φ0 + pc cos 2θ + ps sin 2θ
@@ -94,7 +95,7 @@ PLANE_LAST_STEP = 1e-7
 leaves ~1e-14, below PLANE_TOL's next step, without another evaluation of h)."""
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _clamped(angle, d1, d2, lo, hi):
     """(angle, d1, d2) with angle clamped to [lo, hi] (derivatives 0 where clamped)."""
     if angle < lo:
@@ -104,7 +105,7 @@ def _clamped(angle, d1, d2, lo, hi):
     return angle, d1, d2, True
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _kink(c2, s2, phi0, pc, ps, phi_lo, phi_hi):
     """The clamp boundary of φ nearest to the plane with (cos 2θ, sin 2θ) = (c2, s2).
 
@@ -137,7 +138,7 @@ def _kink(c2, s2, phi0, pc, ps, phi_lo, phi_hi):
     return best, slope, bound, side
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def has_kinks(phi0, rho, phi_lo, phi_hi):
     """Whether φ_raw(θ) = φ0 + ρ cos(2θ - β) (:func:`_kink`; ρ = hypot(pc, ps), fab[6] of
     :func:`fabric_terms`) crosses a clamp bound: only then can an arc maximum sit on a corner
@@ -145,7 +146,7 @@ def has_kinks(phi0, rho, phi_lo, phi_hi):
     return rho > 0.0 and (phi0 - rho < phi_lo or phi0 + rho > phi_hi)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def single_maximum(m, r, phi0, pc, ps, phi_lo, phi_hi):
     r"""Whether h has a single local maximum on each arc, proved from bounds (no search):
     then a safeguarded refinement from anywhere in the arc finds its maximum.
@@ -181,7 +182,7 @@ def single_maximum(m, r, phi0, pc, ps, phi_lo, phi_hi):
     return d2 < amp * np.sqrt(1.0 - sin_w * sin_w)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     """h, ∂h/∂u, ∂²h/∂u² at u = 2(θ - α) on the arc of sign g (the plane search)."""
     cu = np.cos(u)
@@ -201,7 +202,7 @@ def _h_on_arc(u, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     return h, hu, huu
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _corner_on_arc(u, g, m, r, ca, sa, slope, bound, side):
     """Whether h has a corner maximum at the clamp boundary u (:func:`_kink`: φ_raw = φ_b
     there, φ_raw_θ = ``slope``, ``side`` toward the free side): the clamped branch
@@ -218,7 +219,7 @@ def _corner_on_arc(u, g, m, r, ca, sa, slope, bound, side):
     return hu_clamped * side > 0.0 and hu_free * side < 0.0
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def arc_maximum(g, u0, n_search, maxit, m, r, ca, sa, fab):
     """(u, h(u)): the maximum of h over the arc of sign g (u in [0, π] for g < 0, [-π, 0]
     else), h as :func:`_refine_on_arc` gives it.
@@ -292,21 +293,21 @@ def arc_maximum(g, u0, n_search, maxit, m, r, ca, sa, fab):
     return u, h
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _h_value(cu, su, g, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     """h at the plane with (cos u, sin u) = (cu, su) on the arc of sign g (no derivatives)."""
     phi = min(max(phi0 + pc * (ca * cu - sa * su) + ps * (sa * cu + ca * su), phi_lo), phi_hi)
     return -g * r * su + np.tan(phi) * (m + r * cu)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _end_value(u, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     """h at an arc's end u = 0 (the plane of σ1 = m + R) or u = ±π (σ2 = m - R), τ = 0."""
     sgn = 1.0 if u == 0.0 else -1.0
     return np.tan(min(max(phi0 + sgn * (pc * ca + ps * sa), phi_lo), phi_hi)) * (m + sgn * r)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _refine_on_arc(g, u, lo, hi, kinks, maxit, m, r, ca, sa, phi0, pc, ps, phi_lo, phi_hi):
     """(u, h): the maximum of h in [lo, hi] from u: Newton on ∂h/∂u = 0, safeguarded by
     bisection on the sign of ∂h/∂u (a Newton step below PLANE_LAST_STEP is the last; at most
@@ -354,7 +355,7 @@ def _refine_on_arc(g, u, lo, hi, kinks, maxit, m, r, ca, sa, phi0, pc, ps, phi_l
     return u, h + (hu + 0.5 * huu * delta) * delta
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _slip_angle(sq, sp, cp):
     """(sin ψ̂, cos ψ̂, ρ) from (sin ψ, sin φ, cos φ) (module doc): ψ̂ = atan2(num, den),
     num = sin ψ cos φ, den = 1 - sin ψ sin φ, ρ = hypot(num, den)."""
@@ -364,7 +365,7 @@ def _slip_angle(sq, sp, cp):
     return num / rho, den / rho, rho
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def _slip_angle_derivative(sq, cq, sp, cp, sh, ch, rho, dpsi, dphi):
     """The derivatives of (sin ψ̂, cos ψ̂) along (dψ, dφ), from :func:`_slip_angle`'s values."""
     num = sq * cp
@@ -375,20 +376,19 @@ def _slip_angle_derivative(sq, cq, sp, cp, sh, ch, rho, dpsi, dphi):
     return (d_num - sh * d_rho) / rho, (d_den - ch * d_rho) / rho
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
-def _branch_slopes(g, sn, m, tau, phi, p_t, p_tt):
-    """(tan φ, sec²φ, ∂tan φ/∂θ, h_θ, h_θθ) of h = g τ + tan φ σn on one smooth branch
-    φ(θ) with φ_θ = ``p_t``, φ_θθ = ``p_tt`` (σn_θ = 2τ, τ_θ = -2(σn - m))."""
-    t = np.tan(phi)
-    sec2 = 1.0 + t * t
+@njit(**KERNEL)
+def _branch_slopes(g, sn, m, tau, t, sec2, p_t, p_tt):
+    """(∂tan φ/∂θ, h_θ, h_θθ) of h = g τ + tan φ σn on one smooth branch φ(θ) with
+    tan φ = ``t``, sec²φ = ``sec2``, φ_θ = ``p_t``, φ_θθ = ``p_tt`` (σn_θ = 2τ,
+    τ_θ = -2(σn - m))."""
     t_t = sec2 * p_t
     t_tt = 2.0 * t * sec2 * p_t * p_t + sec2 * p_tt
     h_t = -2.0 * g * (sn - m) + t_t * sn + 2.0 * t * tau
     h_tt = -4.0 * g * tau + t_tt * sn + 4.0 * t_t * tau - 4.0 * t * (sn - m)
-    return t, sec2, t_t, h_t, h_tt
+    return t_t, h_t, h_tt
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(**KERNEL, inline="always")
 def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
     """Every term of the arc-g maximum near u, written to row k of ``pl`` (layout PL_*).
 
@@ -426,7 +426,13 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
     phr_t = 2.0 * (-pc * s2 + ps * c2)
     phr_tt = -4.0 * (pc * c2 + ps * s2)
     phi, p_t, p_tt, phi_free = _clamped(phr, phr_t, phr_tt, fab[8], fab[9])
-    t, sec2, t_t, h_t, h_tt = _branch_slopes(g, sn, m, tau, phi, p_t, p_tt)
+    # tan φ and sec²φ from one sincos (|φ| < π/2, cos φ > 0), which the slip angle needs too:
+    # cheaper than tan, a square root and a division (measured).
+    sp = np.sin(phi)
+    cp = np.cos(phi)
+    t = sp / cp
+    sec2 = 1.0 / (cp * cp)
+    t_t, h_t, h_tt = _branch_slopes(g, sn, m, tau, t, sec2, p_t, p_tt)
     h = g * tau + t * sn
     # h_θσ = -2g(∂σn/∂σ - e) + T_θ ∂σn/∂σ + 2T ∂τ/∂σ
     hts0 = -2.0 * g * (sn_s0 - 0.5) + t_t * sn_s0 + 2.0 * t * ta_s0
@@ -443,12 +449,16 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
         d, kink_t, bound, side = _kink(c2, s2, phi0, pc, ps, fab[8], fab[9])
         dk = 0.5 * d
         if lo <= u + d <= lo + np.pi:
+            # the other branch's slopes (φ = φ_b if free here, φ_raw if clamped)
+            o_phi = bound if phi_free else phr
+            o_tan = np.tan(o_phi)
+            _, o_t, o_tt = _branch_slopes(g, sn, m, tau, o_tan, 1.0 + o_tan * o_tan,
+                                          0.0 if phi_free else phr_t,
+                                          0.0 if phi_free else phr_tt)
             if phi_free:
-                _, _, _, o_t, o_tt = _branch_slopes(g, sn, m, tau, bound, 0.0, 0.0)
                 free_t = h_t + h_tt * dk
                 clamped_t = o_t + o_tt * dk
             else:
-                _, _, _, o_t, o_tt = _branch_slopes(g, sn, m, tau, phr, phr_t, phr_tt)
                 free_t = o_t + o_tt * dk
                 clamped_t = h_t + h_tt * dk
             corner = clamped_t * side > 0.0 and free_t * side < 0.0
@@ -506,8 +516,6 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
         clamp = -1.0
     sq = np.sin(psi)
     cq = np.cos(psi)
-    cp = 1.0 / np.sqrt(sec2)
-    sp = t * cp
     sh, ch, rho_h = _slip_angle(sq, sp, cp)
     # (sin ψ̂, cos ψ̂) are functions of (ψ, φ): their derivatives along any direction
     # (dψ, dφ) combine the two partials.
@@ -555,7 +563,7 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
         pl[k, PL_SHP + j] = sh_p
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def fabric_terms_jacobian(prm, out):
     """``out`` (6, 4) ← ∂p/∂(c, A, Bc, Bs) of :func:`fabric_terms` (constant: p is affine)."""
     out[:, :] = 0.0
@@ -570,7 +578,7 @@ def fabric_terms_jacobian(prm, out):
         out[row + 1, 3] = amp * np.cos(ang)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def fabric_terms(c, a, bc, bs, prm, dpz):
     """The per-state constants ``fab`` = (φ0, pc, ps, ψ0, qc, qs, ρ, ψ', φ_min, φ_max) of
     :func:`plane_terms`, ρ = hypot(pc, ps) the amplitude of φ's anisotropy (:func:`has_kinks`)
@@ -590,7 +598,7 @@ def fabric_terms(c, a, bc, bs, prm, dpz):
     return phi0, pc, ps, psi0, qc, qs, hypot(pc, ps), prm[4], prm[6], prm[7]
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def stress_frame(sxx, syy, sxy):
     """(m, R, cos 2α, sin 2α): mean stress, deviator radius, major principal direction."""
     m = 0.5 * (sxx + syy)
@@ -601,14 +609,18 @@ def stress_frame(sxx, syy, sxy):
     return m, r, 1.0, 0.0
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def arc_u(theta, g, two_alpha):
     """u = 2(θ - α) of plane θ, wrapped to (-π, π] and moved to the nearest end of arc g.
 
     The wrap is one floor, not a loop: a loop of ±2π steps never ends for a plane angle of
-    1e300 (an uninitialized warm start hung the tier-2 update that way)."""
+    1e300 (an uninitialized warm start hung the tier-2 update that way). Where the floor's
+    rounding leaves the period (|u| ~ 1e20, where the fused u - 2πk keeps what separate
+    roundings cancelled) the exact remainder finishes the wrap."""
     u = 2.0 * theta - two_alpha
     u -= 2.0 * np.pi * np.floor((u + np.pi) / (2.0 * np.pi))
+    if not -np.pi <= u <= np.pi:
+        u = np.remainder(u + np.pi, 2.0 * np.pi) - np.pi
     if u == -np.pi:
         u = np.pi
     if g < 0.0 and u < 0.0:
@@ -618,19 +630,19 @@ def arc_u(theta, g, two_alpha):
     return u
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
-def arc_maxima(m, r, ca, sa, two_alpha, fab, n_search, maxit, theta):
+@njit(**KERNEL)
+def arc_maxima(m, r, ca, sa, two_alpha, fab, n_search, maxit, theta, single):
     """(h0, h1): the maximum values of both arcs (:func:`arc_maximum`, refinements of at most
     ``maxit`` steps) of the stress (m, R, 2α); ``theta`` (2,) in/out: the planes (warm
     starts in, maximizers out).
 
-    Where h provably has a single maximum on each arc (:func:`single_maximum`) the grid of
-    ``n_search`` points is not needed: each refinement starts inside its whole arc from
-    u* = atan2(-g, tan φ0), the maximum of h's θ-independent part (for φ independent of θ
-    the maximum itself; = -g(π/2 - φ0) where |φ0| < π/2).
+    Where h provably has a single maximum on each arc (``single``: the caller's
+    :func:`single_maximum`, with ``n_search`` > 0) the grid of ``n_search`` points is not
+    needed: each refinement starts inside its whole arc from u* = atan2(-g, tan φ0), the
+    maximum of h's θ-independent part (for φ independent of θ the maximum itself;
+    = -g(π/2 - φ0) where |φ0| < π/2).
     """
     phi0 = fab[0]
-    single = n_search > 0 and single_maximum(m, r, phi0, fab[1], fab[2], fab[8], fab[9])
     if not single:
         u_star = 0.0
     elif abs(phi0) < 0.5 * np.pi:
@@ -651,21 +663,27 @@ def arc_maxima(m, r, ca, sa, two_alpha, fab, n_search, maxit, theta):
     return h0, h1
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(**KERNEL)
 def yield_value(sxx, syy, sxy, fab, beta, n_search, theta):
     """f(σ) alone (the elastic check), searching both arcs (:func:`arc_maxima`).
 
     ``theta`` (2,) in/out: the planes of the arc maxima (warm starts in, maximizers out).
     """
     m, r, ca, sa = stress_frame(sxx, syy, sxy)
-    two_alpha = np.arctan2(sa, ca)
-    hk0, hk1 = arc_maxima(m, r, ca, sa, two_alpha, fab, n_search, NEWTON_MAXIT_PLANE, theta)
-    s = hypot(m, r)
-    w0 = 0.5 if s == 0.0 else 1.0 / (1.0 + np.exp(beta * (hk1 - hk0) / s))
-    return w0 * hk0 + (1.0 - w0) * hk1
+    single = n_search > 0 and single_maximum(m, r, fab[0], fab[1], fab[2], fab[8], fab[9])
+    hk0, hk1 = arc_maxima(m, r, ca, sa, np.arctan2(sa, ca), fab, n_search, NEWTON_MAXIT_PLANE,
+                          theta, single)
+    return softmax_mean(hk0, hk1, beta, hypot(m, r))
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(**KERNEL, inline="always")
+def softmax_mean(h0, h1, beta, s):
+    """f = w0 h0 + w1 h1, w = softmax(β h_k / s) (module doc; w = (½, ½) at s = 0)."""
+    w0 = 0.5 if s == 0.0 else 1.0 / (1.0 + np.exp(beta * (h1 - h0) / s))
+    return w0 * h0 + (1.0 - w0) * h1
+
+
+@njit(**KERNEL, inline="always")
 def yield_and_flow(sxx, syy, sxy, fab, beta, search, n_search, theta, pl, yf):
     """f, N, tr N and their σ- and c-derivatives into ``yf`` (layout YF_*; module doc).
 
