@@ -389,8 +389,11 @@ def _branch_slopes(g, sn, m, tau, t, sec2, p_t, p_tt):
 
 
 @njit(**KERNEL, inline="always")
-def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
-    """Every term of the arc-g maximum near u, written to row k of ``pl`` (layout PL_*).
+def plane_terms(cu, su, c2, s2, g, m, r, ca, sa, fab, pl, k):
+    """Every term of the arc-g maximum near the plane u, written to row k of ``pl`` (layout
+    PL_*); the plane is given by (cos u, sin u) = (``cu``, ``su``) (u = 2(θ - α) on arc g:
+    :func:`arc_point`) and (cos 2θ, sin 2θ) = (``c2``, ``s2``), the stress by m, R and
+    (cos 2α, sin 2α) = (``ca``, ``sa``).
 
     ``fab`` = (φ0, pc, ps, ψ0, qc, qs, ρ, ·, φ_min, φ_max) (:func:`fabric_terms`). u need
     not be the exact maximizer: with the plane's Newton step δθ = -h_θ/h_θθ (stored as
@@ -408,10 +411,6 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
     including h_θ θ_σ).
     """
     phi0, pc, ps, psi0, qc, qs = fab[0], fab[1], fab[2], fab[3], fab[4], fab[5]
-    cu = np.cos(u)
-    su = np.sin(u)
-    c2 = ca * cu - sa * su
-    s2 = sa * cu + ca * su
     sn = m + r * cu
     tau = -r * su
     # Voigt gradients of σn and τ, and their θ-derivatives (e = (½, ½, 0)).
@@ -448,7 +447,7 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
         # clamped branch still rises toward the free side there and the free one falls.
         d, kink_t, bound, side = _kink(c2, s2, phi0, pc, ps, fab[8], fab[9])
         dk = 0.5 * d
-        if lo <= u + d <= lo + np.pi:
+        if lo <= arc_angle(cu, su, g) + d <= lo + np.pi:
             # the other branch's slopes (φ = φ_b if free here, φ_raw if clamped)
             o_phi = bound if phi_free else phr
             o_tan = np.tan(o_phi)
@@ -481,8 +480,14 @@ def plane_terms(u, g, m, r, ca, sa, fab, pl, k):
         else:
             inv = 0.0
             step = np.pi if h_t > 0.0 else (-np.pi if h_t < 0.0 else 0.0)
-        # The plane's step, kept inside the arc (u + 2δθ in [0, π] or [-π, 0]).
-        dt = min(max(step, 0.5 * (lo - u)), 0.5 * (lo + np.pi - u))
+        # The plane's step, kept inside the arc (u + 2δθ in [0, π] or [-π, 0]). A step with
+        # |2δθ| <= |sin u| stays inside without u: |sin u| is the sine of the distance to the
+        # arc's nearer end, and no more than that distance.
+        if abs(2.0 * step) <= abs(su):
+            dt = step
+        else:
+            u = arc_angle(cu, su, g)
+            dt = min(max(step, 0.5 * (lo - u)), 0.5 * (lo + np.pi - u))
         end = dt != step and r > 0.0
     if end:
         inv = 0.0
@@ -630,6 +635,32 @@ def arc_u(theta, g, two_alpha):
     return u
 
 
+@njit(**KERNEL, inline="always")
+def arc_point(theta, g, ca, sa):
+    """(cos u, sin u, cos 2θ, sin 2θ) of plane θ, u = 2(θ - α), moved to the nearest end of
+    arc g as :func:`arc_u` does, from (cos 2α, sin 2α) = (``ca``, ``sa``) alone: no angle α
+    (an atan2, ~25 ns, per evaluation of :func:`yield_and_flow`)."""
+    c2 = np.cos(2.0 * theta)
+    s2 = np.sin(2.0 * theta)
+    cu = c2 * ca + s2 * sa
+    su = s2 * ca - c2 * sa
+    if g * su > 0.0:       # the other arc's side: its nearer end of arc g (u = 0 or ±π)
+        e = 1.0 if cu > 0.0 else -1.0
+        return e, 0.0, e * ca, e * sa
+    return cu, su, c2, s2
+
+
+@njit(**KERNEL, inline="always")
+def arc_angle(cu, su, g):
+    """u of the plane (cos u, sin u) on arc g: in [0, π] for g < 0, [-π, 0] for g > 0."""
+    u = np.arctan2(su, cu)
+    if g < 0.0 and u < 0.0:
+        return np.pi
+    if g > 0.0 and u > 0.0:
+        return -np.pi
+    return u
+
+
 @njit(**KERNEL)
 def arc_maxima(m, r, ca, sa, two_alpha, fab, n_search, maxit, theta, single):
     """(h0, h1): the maximum values of both arcs (:func:`arc_maximum`, refinements of at most
@@ -694,14 +725,20 @@ def yield_and_flow(sxx, syy, sxy, fab, beta, search, n_search, theta, pl, yf):
     yf[YF_NS + 3 i + j] = ∂N_i/∂σ_j, yf[YF_NP + 6 i + j] = ∂N_i/∂p_j.
     """
     m, r, ca, sa = stress_frame(sxx, syy, sxy)
-    two_alpha = np.arctan2(sa, ca)
+    two_alpha = np.arctan2(sa, ca) if search else 0.0
     for k in range(2):
         g = -1.0 if k == 0 else 1.0
-        u = arc_u(theta[k], g, two_alpha)
         if search:
+            u = arc_u(theta[k], g, two_alpha)
             u, _ = arc_maximum(g, u, n_search, NEWTON_MAXIT_PLANE, m, r, ca, sa, fab)
             theta[k] = 0.5 * (two_alpha + u)
-        plane_terms(u, g, m, r, ca, sa, fab, pl, k)
+            cu = np.cos(u)
+            su = np.sin(u)
+            c2 = ca * cu - sa * su
+            s2 = sa * cu + ca * su
+        else:
+            cu, su, c2, s2 = arc_point(theta[k], g, ca, sa)
+        plane_terms(cu, su, c2, s2, g, m, r, ca, sa, fab, pl, k)
     h0 = pl[0, PL_H]
     h1 = pl[1, PL_H]
     s = hypot(m, r)
