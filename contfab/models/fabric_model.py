@@ -57,6 +57,16 @@ converge (or whose ridge return leaves 0 <= λ <= 1, or finds a third plane high
 the apex region, a non-finite result. The point returns its input stress
 and state and the elastic tangent; nothing non-finite is produced.
 
+A step past a limit point of the regularized model fails too, by design. f's fabric
+derivatives grow with |σ| and the elastic part of the return, ∂f/∂σ C N, with K and G: at
+stresses of order the moduli (P ~ 3 K, far above p_ref) the fabric's evolution can raise f
+as fast as the flow relaxes the stress, and the strain-driven response itself reaches a
+limit point (tests/test_fabric_model.py, ``LIMIT_POINT_STEP``: P = 3101 p_ref = 3.1 K, 0.3 %
+past the end of the step). Near it the step's backward-Euler problem keeps a root only far out
+(Δγ = 0.15 for a strain increment of 6e-4, the fabric turned round): a solution of the
+equations, but not of the path (substeps converge to a point 76 p_ref away), so no solve
+here looks for it; the caller cuts the step.
+
 **Compilation.** Every function here except the allocating ones (``_scratch``,
 ``_update_range``, ``update_points``), and those of :mod:`contfab.models.slip_planes` and
 :mod:`contfab.models.fabric_law` (but ``drive_fabric``), is compiled with numba's ``_nrt=False``:
