@@ -32,6 +32,9 @@ Yield f and flow N: :mod:`contfab.models.slip_planes`; fabric laws:
    solution makes the other plane the arc's higher one, the solution lies on a ridge of f:
    both planes carry the arc's maximum, h_a = h_b, and the arc's flow is λ N_a + (1 - λ) N_b,
    0 <= λ <= 1 (Koiter's rule; :func:`_ridge_residual`, one more unknown λ and equation).
+   Its Newton (:func:`_ridge_newton`) keeps the three planes inside their arcs after each
+   step: on loose states the arc's maxima are corners of φ's clamp next to the arc's ends,
+   and a plane a step took past an end otherwise stalled the solve.
 5. Apex (status 2): σ = 0, all of C⁻¹σ_tr plastic, c = c_n exp(P_tr/K), zero tangent
    (as tier 1), when C⁻¹σ_tr dilates at least as much as the flow: tier 1's criterion
    G P_tr + K sin ψ R_tr <= 0 with the isotropic part of ψ(θ) at c_apex (exactly tier 1's at
@@ -53,6 +56,16 @@ acts, and on a ridge: J of the ridge return there).
 converge (or whose ridge return leaves 0 <= λ <= 1, or finds a third plane higher) outside
 the apex region, a non-finite result. The point returns its input stress
 and state and the elastic tangent; nothing non-finite is produced.
+
+A step past a limit point of the regularized model fails too, by design. f's fabric
+derivatives grow with |σ| and the elastic part of the return, ∂f/∂σ C N, with K and G: at
+stresses of order the moduli (P ~ 3 K, far above p_ref) the fabric's evolution can raise f
+as fast as the flow relaxes the stress, and the strain-driven response itself reaches a
+limit point (tests/test_fabric_model.py, ``LIMIT_POINT_STEP``: P = 3101 p_ref = 3.1 K, 0.3 %
+past the end of the step). Near it the step's backward-Euler problem keeps a root only far out
+(Δγ = 0.15 for a strain increment of 6e-4, the fabric turned round): a solution of the
+equations, but not of the path (substeps converge to a point 76 p_ref away), so no solve
+here looks for it; the caller cuts the step.
 
 **Compilation.** Every function here except the allocating ones (``_scratch``,
 ``_update_range``, ``update_points``), and those of :mod:`contfab.models.slip_planes` and
@@ -94,7 +107,7 @@ from contfab.models.cone import (STATUS_APEX, STATUS_ELASTIC, STATUS_FACE, STATU
 from contfab.models.fabric_law import balance_work, fabric_step, rotate_fabric
 from contfab.models.slip_planes import (N_P, N_PL, N_YF, PL_DT, PL_H, PL_HP, PL_HS, PL_TP, PL_TS,
                                         YF_F, YF_FP, YF_FS, YF_N, YF_NP, YF_NS, YF_TR, YF_TRP,
-                                        YF_TRS, arc_maxima, fabric_terms,
+                                        YF_TRS, arc_maxima, arc_u, fabric_terms,
                                         fabric_terms_jacobian, single_maximum, stress_frame,
                                         yield_and_flow, yield_value)
 from contfab.tensors import hypot, isotropic_stiffness_into, rotate
@@ -552,9 +565,9 @@ def _ridge_residual(x, k, c_n, qn, prm, sc, s_ref):
 @njit(**KERNEL)
 def _ridge_newton(k, c_n, qn, prm, sc, s_ref):
     """Newton on the ridge residuals (:func:`_ridge_residual`) from row V_XR, the planes a,
-    b and o moving with their condensed steps, backtracking on max |residual|: (converged
-    with Δγ >= 0, P > 0 and 0 <= λ <= 1, fabric projected). On success ``sc.jacr`` holds the
-    LU factors of the Jacobian at the solution."""
+    b and o moving with their condensed steps and kept inside their arcs, backtracking on
+    max |residual|: (converged with Δγ >= 0, P > 0 and 0 <= λ <= 1, fabric projected). On
+    success ``sc.jacr`` holds the LU factors of the Jacobian at the solution."""
     x = sc.v[V_XR]
     xt = sc.v[V_XRT]
     dx = sc.v[V_DXR]
@@ -564,6 +577,7 @@ def _ridge_newton(k, c_n, qn, prm, sc, s_ref):
     pa = sc.planes[0:2]
     pb = sc.planes[2:4]
     piv = sc.piv[1]
+    g = -1.0 if k == 0 else 1.0        # arc k's sign of τ (slip_planes: plane rows 0, 1)
     err, projected = _ridge_residual(x, k, c_n, qn, prm, sc, s_ref)
     for _ in range(NEWTON_MAXIT):
         if not np.isfinite(err) or not _lu(sc.jacr, piv, N_XR):
@@ -600,6 +614,21 @@ def _ridge_newton(k, c_n, qn, prm, sc, s_ref):
         for i in range(N_XR):
             x[i] = xt[i]
         err = err_t
+        # Each plane to where its terms at x were taken: slip_planes.arc_u puts a plane that
+        # a step took past an end of its arc (τ = 0) at that end; θ ← α + u/2 with u mapped
+        # into the arc (the terms unchanged). Left past the end, a plane keeps the end's
+        # terms while its condensed steps move the stored angle: their first-order step to
+        # an interior maximum or a corner of φ's clamp (slip_planes.plane_terms) does not
+        # bring the evaluated plane into the arc, the other residuals converge against that
+        # estimate, and the full step to the plane's own maximum then raises max |residual|
+        # by the estimate's second-order error: the line search stalls (loose states whose
+        # arc maxima are corners next to the arc's ends, measured).
+        _, _, ca, sa = stress_frame(x[0], x[1], x[2])
+        two_alpha = np.arctan2(sa, ca)
+        theta[k] = 0.5 * (two_alpha + arc_u(theta[k], g, two_alpha))
+        thb[k] = 0.5 * (two_alpha + arc_u(thb[k], g, two_alpha))
+        theta[1 - k] = 0.5 * (two_alpha + arc_u(theta[1 - k], -g, two_alpha))
+        thb[1 - k] = theta[1 - k]
     return False, False
 
 
