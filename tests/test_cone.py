@@ -87,8 +87,12 @@ def fd_tangent(tier, params, stress_n, state_n, dstrain, dspin, h):
     return d, sides
 
 
-def check_update(tier, params, stress_n, state_n, dstrain, dspin):
-    """Run one update and assert acceptance 1 on every point; return per-status counts."""
+def check_update(tier, params, stress_n, state_n, dstrain, dspin, figures=None):
+    """Run one update and assert acceptance 1 on every point; return per-status counts.
+
+    ``figures`` (a dict, optional) accumulates the worst measured values: f/P on the face,
+    |tr Δεp - sin ψ (Δεp1 - Δεp2)| / (Δεp1 - Δεp2) on the face, the tangent's relative
+    (Frobenius) error against central differences, and the number of points checked."""
     res = tiers.update(tier, stress_n, state_n, dstrain, dspin, params)
     k, g = moduli(params, tier)
     assert np.all(res.status != STATUS_FAILED)
@@ -144,12 +148,34 @@ def check_update(tier, params, stress_n, state_n, dstrain, dspin):
     scale = np.linalg.norm(d_fd, axis=(1, 2))
     bad = same & (err > 1e-6 * scale)
     assert not bad.any(), (err / np.maximum(scale, 1e-300))[bad]
+    if figures is not None:
+        loaded = face & (p > 0)
+        rel_tangent = np.where(scale > 0, err / np.maximum(scale, 1e-300), err)
+        # apex: σ = 0 exactly; f/P has no meaning there (0/0), f = 0 is counted as such
+        for key, values in (("f/P", (f / np.where(loaded, p, 1.0))[loaded]),
+                            ("|f|/P", (np.abs(f) / np.where(loaded, p, 1.0))[loaded]),
+                            ("dilatancy", (np.abs(tr - spsi * diff) / np.where(face, diff, 1.0))[face]),
+                            # where Δεp1 - Δεp2 >= 1e-3 of the strain magnitude the stored σ's
+                            # rounding (1e-16 |σ|/G in Δεp) cannot reach 1e-10 of it
+                            ("dilatancy resolved", (np.abs(tr - spsi * diff) / np.where(
+                                face, diff, 1.0))[face & (diff >= 1e-3 * floor / 1e-13)]),
+                            ("tangent", rel_tangent[same])):
+            figures[key] = max(figures.get(key, -np.inf), float(np.max(values, initial=-np.inf)))
+        counts = figures.setdefault("points", np.zeros(3, int))
+        counts += [np.sum((res.status == s) & same) for s in (0, 1, 2)]
+        figures["pure tension"] = figures.get("pure tension", 0) + int(np.sum(
+            (dstrain[:, 0] == dstrain[:, 1]) & (dstrain[:, 0] > 0) & (dstrain[:, 2] == 0) & same))
+        figures["apex start"] = figures.get("apex start", 0) + int(np.sum(
+            np.all(stress_n == 0, axis=1) & same))
     return {s: int(np.sum((res.status == s) & same)) for s in (0, 1, 2)}
 
 
-def random_points(rng, tier, params, n):
+def random_points(rng, tier, params, n, pure_tension=0):
     """Stresses inside / on the cone / at the apex, increments from 1e-3 to 1e3 elastic
-    strains in random directions (including dominant isotropic tension), small spins."""
+    strains in random directions (including dominant isotropic tension), small spins; then
+    ``pure_tension`` more points driven by pure isotropic extension (Δε = e (1, 1, 0) exactly,
+    no spin) from the same kinds of stress, the apex included (drawn after the first n, which
+    stay the same whatever ``pure_tension``)."""
     k, g = moduli(params, tier)
     p_ref = params.p_ref
     c_n = np.clip(params.tier1.c_star + rng.uniform(-0.08, 0.08, n), 0.05, 0.99)
@@ -168,6 +194,13 @@ def random_points(rng, tier, params, n):
     dstrain = direction * (p_ref / g) * 10 ** rng.uniform(-3, 3, n)[:, None]
     dspin = 1e-2 * rng.standard_normal(n)
     state = np.zeros((n, 1)) if tier == 0 else np.stack([np.zeros(n), c_n], 1)
+    if pure_tension:
+        s2, q2, _, _ = random_points(rng, tier, params, pure_tension)
+        s2[rng.random(pure_tension) < 0.3] = 0.0                  # more of them at the apex
+        e = (p_ref / g) * 10 ** rng.uniform(-3, 3, pure_tension)
+        de2 = np.stack([e, e, np.zeros(pure_tension)], 1)
+        return (np.concatenate([stress, s2]), np.concatenate([state, q2]),
+                np.concatenate([dstrain, de2]), np.concatenate([dspin, np.zeros(pure_tension)]))
     return stress, state, dstrain, dspin
 
 
@@ -182,7 +215,7 @@ nu = st.floats(-0.5, 0.1)
 @given(phi_deg, psi_fraction, log_lam, log_pref, nu, st.integers(0, 2**32 - 1))
 def test_tier0_return_yield_flow_tangent(phi, t, log_lam, log_pref, nu, seed):
     params = make_params(0, lam=10**log_lam, p_ref=10**log_pref, nu=nu, phi=phi, psi=t * phi)
-    points = random_points(np.random.default_rng(seed), 0, params, 48)
+    points = random_points(np.random.default_rng(seed), 0, params, 48, pure_tension=8)
     check_update(0, params, *points)
 
 
@@ -194,7 +227,7 @@ def test_tier1_return_yield_flow_c_tangent(phi_star, dphi, dpsi, c_star, u_min, 
     params = make_params(1, lam=10**log_lam, p_ref=10**log_pref, nu=nu, phi_star=phi_star,
                          dphi=dphi, dpsi=dpsi, c_star=c_star,
                          phi_min=max(0.1, u_min * phi_star), phi_max=phi_star + u_max * (70 - phi_star))
-    points = random_points(np.random.default_rng(seed), 1, params, 48)
+    points = random_points(np.random.default_rng(seed), 1, params, 48, pure_tension=8)
     check_update(1, params, *points)
 
 
@@ -204,6 +237,50 @@ def test_every_branch_is_checked(tier):
     params = make_params(tier, psi=10.0)
     counts = check_update(tier, params, *random_points(np.random.default_rng(7), tier, params, 400))
     assert min(counts.values()) >= 20, counts
+
+
+def test_acceptance_1_figures_over_the_stated_domain():
+    """Acceptance 1's figures on a fixed sweep (the hypothesis tests above search the same
+    domain at random): tiers 0 and 1, φ (tier 1: φ*) from 0.5° to 60°, ψ from -φ to φ (tier 1:
+    ψ(c) sweeps through its clamps at ±φ(c)), λ from 1e2 to 1e6, stresses inside, on the cone
+    and at the apex, increments of every direction, pure isotropic extension included.
+    Prints the worst f/P, dilatancy error and tangent error (run with -s); measured
+    (tier 0 / tier 1): f/P 3.3e-16 / 5.1e-16; dilatancy 9.6e-11 / 1.3e-11 over every face
+    point, 1.6e-13 / 1.6e-13 where the plastic strain is resolved (>= 1e-3 of the strain
+    magnitude: below, the rounding of the stored σ alone is 1e-16 |σ|/G); tangent
+    4.4e-9 / 2.1e-8, on ~7500 FD-checked points per tier, 1260 of them pure tension."""
+    worst = {}
+    for tier in (0, 1):
+        figures = {}
+        for phi in (0.5, 1.0, 5.0, 15.0, 30.0, 45.0, 60.0):
+            for t in (-1.0, -0.5, 0.0, 0.5, 1.0):
+                for k, lam in enumerate((1e2, 1e4, 1e6)):
+                    if tier == 0:
+                        params = make_params(0, lam=lam, nu=(-0.3, 0.0, 0.1)[k], phi=phi,
+                                             psi=t * phi)
+                    else:
+                        # φ(c) from 0.5 φ* to 1.5 φ* (clamped to [0.5°, 60°]) and ψ(c) from
+                        # 1.2 t_max φ* of either sign over c* ± 0.08: through the ψ = ±φ clamps
+                        params = make_params(1, lam=lam, nu=(-0.3, 0.0, 0.1)[k], phi_star=phi,
+                                             dphi=0.5 * phi / 0.08,
+                                             dpsi=(0.25 + abs(t)) * 1.2 * phi / 0.08,
+                                             phi_min=0.5, phi_max=60.0)
+                    seed = int(1000 * phi) + 10 * int(10 * t) + k
+                    points = random_points(np.random.default_rng(seed), tier, params, 60,
+                                           pure_tension=12)
+                    check_update(tier, params, *points, figures=figures)
+        print(f"\ntier {tier}: worst f/P {figures['f/P']:.2g} (|f|/P {figures['|f|/P']:.2g}), "
+              f"dilatancy |tr Δεp - sin ψ (Δεp1 - Δεp2)|/(Δεp1 - Δεp2) {figures['dilatancy']:.2g} "
+              f"(where Δεp1 - Δεp2 >= 1e-3 (|Δε| + |σ|/G): {figures['dilatancy resolved']:.2g}), "
+              f"tangent |T - T_fd|/|T_fd| {figures['tangent']:.2g}; FD-checked points "
+              f"elastic/face/apex {figures['points'].tolist()}, of them pure tension "
+              f"{figures['pure tension']}, from σ = 0 {figures['apex start']}")
+        worst[tier] = figures
+        # (every point also passed check_update's bounds, which add the round-off floor)
+        assert figures["f/P"] <= 1e-10 and figures["dilatancy resolved"] <= 1e-10
+        assert figures["tangent"] <= 1e-6
+        assert figures["points"].min() >= 100 and figures["pure tension"] >= 100
+        assert figures["apex start"] >= 100
 
 
 # --------------------------------------------------------------------------- references

@@ -3,7 +3,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import example, given, settings, strategies as st
+from hypothesis import assume, example, given, settings, strategies as st
 
 from conftest import fabric_terms, model_params, stress_at, update
 from contfab import material_point as mp
@@ -63,6 +63,46 @@ def test_rigid_rotation_is_exact(inside, alpha, b, theta_p, dw):
     assert np.hypot(q2[3], q2[4]) == pytest.approx(np.hypot(q[3], q[4]), rel=4.5e-16, abs=1e-300)
     assert np.hypot(q2[3], q2[4]) <= np.hypot(q[3], q[4])
     assert q2[3:] == pytest.approx(np.array(rotate_fabric(q[3], q[4], dw)), rel=0, abs=0)
+    # θp turned by Δω (mod π), measured from (Bc, Bs) independently of rotate_fabric
+    if b > 1e-200:
+        turn = 0.5 * np.arctan2(q2[4], q2[3]) - 0.5 * np.arctan2(q[4], q[3]) - dw
+        assert abs(np.sin(2 * turn)) <= 2e-15 * (1 + abs(dw)) and np.cos(2 * turn) > 0
+
+
+def test_rigid_rotation_figures():
+    """Acceptance 4's rotation figures on a fixed sample (the test above searches at random):
+    2000 states (B in [0, 0.4], any θp, stresses from isotropic to on the yield surface) and
+    spins in [-7, 7] rad, one vectorized update with Δε = 0. Measured (run with -s): every
+    point rigid (status 0); σ equal to the rotated stress, gp, c and A bitwise; |ΔB|/B <=
+    2.6e-16 (B never grows; B = 0 stays 0); |θp,n+1 - θp,n - Δω| (mod π) <= 3.7e-16 rad."""
+    params = model_params(**ANISO)
+    prm = params.array(2)
+    rng = np.random.default_rng(17)
+    n = 2000
+    b = rng.uniform(0, 0.4, n)
+    b[:20] = 0.0
+    theta_p, alpha = rng.uniform(0, np.pi, n), rng.uniform(0, np.pi, n)
+    inside = np.where(rng.random(n) < 0.3, 1.0, rng.uniform(0, 1, n))
+    q = np.array([_state(0.81, 0.95, b[i], theta_p[i]) for i in range(n)])
+    s = np.array([inside[i] * _on_surface(prm, alpha[i], q[i])
+                  + (1 - inside[i]) * stress_at(1.0, 0.0, alpha[i]) for i in range(n)])
+    dw = rng.uniform(-7.0, 7.0, n)
+    s2, q2, _, status = update(params, s, q, np.zeros((n, 3)), dw)
+    b2 = np.hypot(q2[:, 3], q2[:, 4])
+    b1 = np.hypot(q[:, 3], q[:, 4])
+    turn = 0.5 * (np.arctan2(q2[:, 4], q2[:, 3]) - np.arctan2(q[:, 4], q[:, 3])) - dw
+    turn = np.abs(np.angle(np.exp(2j * turn))) / 2          # mod π
+    rel_b = np.abs(b2 - b1) / np.where(b1 > 0, b1, 1.0)
+    print(f"\nrigid rotation of {n} points, |Δω| <= 7 rad: status {np.unique(status).tolist()}, "
+          f"σ exact {np.array_equal(s2, np.array([rotate(*s[i], dw[i]) for i in range(n)]))}, "
+          f"gp, c, A bitwise {np.array_equal(q2[:, :3], q[:, :3])}, max |ΔB|/B {rel_b.max():.2g} "
+          f"(B = 0 stays 0: {np.all(b2[:20] == 0)}), B grew {np.sum(b2 > b1)}, "
+          f"max |Δθp - Δω| {turn[b > 0].max():.2g} rad")
+    assert np.all(status == fm.STATUS_ELASTIC)
+    assert np.array_equal(s2, np.array([rotate(*s[i], dw[i]) for i in range(n)]))
+    assert np.array_equal(q2[:, :3], q[:, :3]) and np.all(b2[:20] == 0)
+    assert rel_b.max() <= 4.5e-16 and np.all(b2 <= b1)
+    assert turn[b > 0].max() <= 1e-14
 
 
 @pytest.mark.parametrize("theta_p", [0.0, 0.8])
@@ -73,6 +113,11 @@ def test_isotropic_fabric_is_not_singular(theta_p):
     iso = _update(prm, stress, _state(0.82, 0.95, 0.0, 0.0), de, 1e-3)
     tiny = _update(prm, stress, _state(0.82, 0.95, 1e-13, theta_p), de, 1e-3)
     assert iso[3] == tiny[3] == fm.STATUS_FACE
+    # Acceptance 3 (B = 0 is not singular): measured differences B = 0 against B = 1e-13
+    # (run with -s): stress 1.3e-13, state 9.9e-14 (B itself), tangent 5.9e-11 (entries
+    # ~1e3): the response is Lipschitz through B = 0, nothing blows up
+    print(f"\nθp = {theta_p}: |B=0 - B=1e-13| stress {np.abs(iso[0] - tiny[0]).max():.2g}, "
+          f"state {np.abs(iso[1] - tiny[1]).max():.2g}, tangent {np.abs(iso[2] - tiny[2]).max():.2g}")
     for x, y in zip(iso[:3], tiny[:3]):
         assert np.isfinite(x).all()
         assert np.abs(x - y).max() < 1e-10
@@ -92,8 +137,7 @@ def test_face_return_solves_backward_euler_and_tangent_matches_differences(
     state = _state(c, 0.95, b, theta_p)
     de = 10.0 ** size * np.array(de)
     s, q, t, status = _update(params, stress, state, de, dw)
-    if status != fm.STATUS_FACE:
-        return
+    assume(status == fm.STATUS_FACE)     # (not a silent return: a vacuous run is an error)
     c_mat = np.array([[bulk + shear, bulk - shear, 0], [bulk - shear, bulk + shear, 0],
                       [0, 0, shear]])
     trial = np.array(rotate(*stress, dw)) + c_mat @ de
@@ -115,8 +159,7 @@ def test_face_return_solves_backward_euler_and_tangent_matches_differences(
         e[j] = h
         sp_, _, _, stp = _update(params, stress, state, de + e, dw)
         sm_, _, _, stm = _update(params, stress, state, de - e, dw)
-        if stp != fm.STATUS_FACE or stm != fm.STATUS_FACE:
-            return
+        assume(stp == fm.STATUS_FACE and stm == fm.STATUS_FACE)
         fd[:, j] = (sp_ - sm_) / (2 * h)
     assert np.abs(fd - t).max() <= 1e-6 * np.abs(c_mat).max()
 
@@ -197,6 +240,42 @@ def test_near_apex_return_with_strong_fabric_converges():
     assert _yield(prm.array(2), s, *q[1:]) == pytest.approx(0.0, abs=1e-12)
 
 
+NEAR_APEX_FLICKER = (
+    np.array([1.826957050872158, 0.7687002226177481, 0.8067778891565585, 0.4017180780641716,
+              -0.32619122151254937]),
+    np.array([0.00190269656475906, -0.00257746062689921, -0.00655457413106202]),
+    -0.0004920295999363612)
+"""State, strain and spin increments of step 150, point 97 of the random-increment test
+below at law "balance mean-field", seed 1478576672, scale -2.855690995026853 (found by a
+150-example soak of that test on 2026-12-02): σ_n = 0, B/A = 0.64 at θp = -19.5°, c = 0.769.
+The update fails (status -1) at this increment and at every halving of it (σ_n = 0 makes
+the problem scale-free: step cutting cannot help)."""
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
+    "known defect (issue 3, found 2026-12-02 by a soak of the 1e5-increment test): from "
+    "σ_n = 0 with a strong fabric (B/A = 0.64, mean-field balance law) the face solve fails "
+    "at some volumetric strains and the least-dilatant-plane apex fallback takes others: the "
+    "statuses flicker between face (P ~ 0.7-0.9), apex (σ = 0) and failed (-1) along a "
+    "1-parameter family of increments whose face solutions are continuous"))
+def test_near_apex_return_from_zero_stress_is_continuous_in_the_increment():
+    # The increment above with its volumetric part tr Δε / 2 shifted by -2e-4 .. +1e-4 (31
+    # values; R_tr/P_tr from 4.4 to 10.0): the face solutions found (P from 1.24 down to 0.68,
+    # R/P 0.449) vary linearly through the whole range, and from σ_n = -1e-3 I (P_n = 1e-3)
+    # the update at tr Δε / 2 = -2.37e-4 returns the face with P = 0.662 where σ_n = 0 returns
+    # the apex, σ = 0 (measured with 116a88d's kernels: 1 of 31 failed, 5 at the apex).
+    prm = model_params(**dict(ANISO, kappa_a=1.0, k_c=1.0, k_o=1.0))
+    state, de0, dw = NEAR_APEX_FLICKER
+    half_tr = 0.5 * (de0[0] + de0[1]) + np.linspace(-2e-4, 1e-4, 31)
+    de = np.tile(de0, (31, 1))
+    de[:, :2] += (half_tr - 0.5 * (de0[0] + de0[1]))[:, None]
+    s, q, _, status = update(prm, np.zeros((31, 3)), np.tile(state, (31, 1)), de, np.full(31, dw))
+    p = -0.5 * (s[:, 0] + s[:, 1])
+    assert np.isfinite(s).all() and np.isfinite(q).all()
+    assert (status == fm.STATUS_FACE).all(), status
+    assert np.all(np.diff(p) < 0)
+
+
 def _wandering_increments(rng, n, steps, scale):
     """Random strain increments that keep most points yielding: a loading direction that
     wanders (random walk), a random volumetric ratio, sizes over three decades, random spin."""
@@ -254,14 +333,19 @@ def test_fabric_admissible_on_every_step_of_1e5_random_increments(seed, scale, l
     state = np.tile(_state(0.81, 0.95, 0.2, 0.3), (n, 1))
     counts = np.zeros(5, dtype=int)
     cuts = 0
+    margin = np.inf
     for de, dw in _wandering_increments(rng, n, steps, scale):
         stress, state, status, c = _update_cutting(prm, stress, state, de, dw)
         cuts += c
         assert (status != fm.STATUS_FAILED).all()
-        assert admissibility_margin(state[:, 2], np.hypot(state[:, 3], state[:, 4])).min() >= 0.0
+        margin = min(margin, admissibility_margin(state[:, 2], np.hypot(state[:, 3], state[:, 4])).min())
+        assert margin >= 0.0
         counts += np.bincount(status + 1, minlength=5)
         # keep c in a physical range between steps (a random walk would leave (0, 1))
         state[:, 1] = np.clip(state[:, 1], 0.7, 0.9)
+    print(f"\n{law}, seed {seed}, scale {scale:.3g}: {n * steps} increments, statuses "
+          f"elastic/face/apex/projected {counts[1:].tolist()}, failed-and-cut {cuts}, "
+          f"min admissibility margin {margin:.3g}")
     assert np.isfinite(stress).all()
     assert counts[2:].sum() > 0.25 * n * steps                 # mostly a test of plastic steps
     assert cuts < 1e-3 * n * steps      # increments up to ~50 P/λ: the local solve rarely folds
@@ -344,9 +428,13 @@ def test_step_size_convergence_is_first_order_and_path_not_time():
     runs = [_run(prm, n) for n in ns]
     diffs = [np.abs(runs[i] - runs[i + 1]).max() for i in range(len(ns) - 1)]
     orders = np.log2(np.array(diffs[:-1]) / np.array(diffs[1:]))
-    assert np.all((orders > 0.85) & (orders < 1.2)), orders
     # The same path parametrized as t^1.5: a different step distribution, same limit.
     graded = [_run(prm, n, graded=True) for n in (160, 640)]
+    print(f"\ntier 2 kernel alone (anisotropic, spin), n = {ns}: differences "
+          f"{', '.join(f'{d:.3g}' for d in diffs)}, orders {', '.join(f'{o:.3f}' for o in orders)}; "
+          f"t^1.5 parametrization at n = 640 against uniform: "
+          f"{np.abs(graded[1] - runs[-1]).max():.3g} (n = 160: {np.abs(graded[0] - runs[2]).max():.3g})")
+    assert np.all((orders > 0.85) & (orders < 1.2)), orders
     assert np.abs(graded[1] - runs[-1]).max() < 2 * diffs[-1]
     assert np.abs(graded[1] - runs[-1]).max() < 0.5 * np.abs(graded[0] - runs[2]).max()
 
@@ -358,12 +446,15 @@ def _strain_path(n, c0):
     return de, 3e-4 * np.cos(4 * t)
 
 
+@pytest.mark.parametrize("start_b", [0.0, 0.17])
 @pytest.mark.parametrize("frozen_a", [False, True])
 @pytest.mark.parametrize("c0", [0.84, 0.78])
-def test_reduces_to_tier1_with_isotropic_plane_angles(c0, frozen_a):
+def test_reduces_to_tier1_with_isotropic_plane_angles(c0, frozen_a, start_b):
     # Acceptance 3: a2 = b2 = 0 (and a1 = b1 = 0, or a1 ≠ 0 with A frozen: all fabric
-    # coefficients 0), an ANISOTROPIC start fabric, spin, dense and loose: the same path as
-    # tier 1 to 1e-8.
+    # coefficients 0), an isotropic start fabric (B = 0, the acceptance's case) or an
+    # anisotropic one (B = 0.17: stronger, the plane angles must not see it), spin, dense and
+    # loose: the same path as tier 1 to 1e-8. Measured worst (run with -s): stress 1.2e-12
+    # (P ~ 1: the local solve's tolerance), c 3.6e-15, gp 7.8e-16, tangent 4.6e-11 of E_reg.
     if frozen_a:
         a0 = 0.955
         tier2 = dict(a0_deg=25.0 - 6.0 * a0, a1_deg=6.0, b0_deg=-2.0 * a0, b1_deg=2.0,
@@ -374,7 +465,7 @@ def test_reduces_to_tier1_with_isotropic_plane_angles(c0, frozen_a):
     de, dw = _strain_path(400, c0)
     s1 = s2 = np.array([[-1.0, -1.0, 0.0]])
     q1 = np.array([[0.0, c0]])
-    q2 = np.array([[0.0, c0, 0.955, 0.15, -0.08]])
+    q2 = np.array([[0.0, c0, 0.955, 0.15 / 0.17 * start_b, -0.08 / 0.17 * start_b]])
     worst = np.zeros(4)
     for k in range(len(dw)):
         s1, q1, t1, st1 = update(params, s1, q1, de[k:k + 1], dw[k:k + 1], tier=1)
@@ -382,8 +473,14 @@ def test_reduces_to_tier1_with_isotropic_plane_angles(c0, frozen_a):
         assert st1[0] == st2[0] or {st1[0], st2[0]} == {fm.STATUS_FACE, fm.STATUS_PROJECTED}
         worst = np.maximum(worst, [np.abs(s1 - s2).max(), abs(q1[0, 1] - q2[0, 1]),
                                    abs(q1[0, 0] - q2[0, 0]), np.abs(t1 - t2).max() / 1000.0])
+    print(f"\nc0 = {c0}, A {'frozen' if frozen_a else 'free'}, start B = {start_b}: tier 2 - "
+          f"tier 1 over {len(dw)} steps: stress {worst[0]:.2g} (P ~ 1), c {worst[1]:.2g}, "
+          f"gp {worst[2]:.2g}, tangent {worst[3]:.2g} (of E_reg); end B = "
+          f"{np.hypot(q2[0, 3], q2[0, 4]):.3f}, c = {q2[0, 1]:.4f}")
     assert worst[0] < 1e-8 and worst[1] < 1e-10 and worst[2] < 1e-10 and worst[3] < 1e-8
     assert (st1 == fm.STATUS_FACE).all()                 # the path is plastic to the end
+    if not frozen_a:        # the fabric evolves along the path (it is not trivially frozen)
+        assert np.hypot(q2[0, 3], q2[0, 4]) > 0.05
 
 
 def test_rotating_principal_axes_at_fixed_p_and_r_flow_only_with_fabric():
@@ -405,9 +502,16 @@ def test_rotating_principal_axes_at_fixed_p_and_r_flow_only_with_fabric():
             statuses.append(st[0])
         runs[tier] = (s[0], q[0], np.array(statuses))
     s1, q1, st1 = runs[1]
+    s2, q2, st2 = runs[2]
+    print(f"\naxes rotated by 180° at P = 1, R/P = {r:.4f} (tier 1's sin φ = "
+          f"{np.sin(np.radians(25.0)):.4f}): tier 1 {np.sum(st1 != fm.STATUS_ELASTIC)} plastic "
+          f"steps, gp = {q1[0]:.3g}, |σ - σ_path| = "
+          f"{np.abs(s1 - stress_at(1.0, r, np.pi)).max():.2g}; tier 2 (B = 0.3, a2 = 15°) "
+          f"{np.sum(st2 == fm.STATUS_FACE)} plastic steps of {len(st2)}, gp = {q2[0]:.3g}, "
+          f"|σ - σ_path| = {np.abs(s2 - stress_at(1.0, r, np.pi)).max():.3f}, "
+          f"end B = {np.hypot(q2[3], q2[4]):.3f}")
     assert (st1 == fm.STATUS_ELASTIC).all() and q1[0] == 0.0
     assert s1 == pytest.approx(stress_at(1.0, r, np.pi), abs=1e-12)   # followed exactly
-    s2, q2, st2 = runs[2]
     assert (st2 == fm.STATUS_FACE).sum() > 10 and q2[0] > 1e-4        # tier 2 flows
     assert np.abs(s2 - stress_at(1.0, r, np.pi)).max() > 1e-2         # and leaves the path
 

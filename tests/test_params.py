@@ -79,13 +79,18 @@ BAD = [
     ({"tier0.psi_deg": -22.5}, ["psi_deg = -22.5", "[-22, 22]"]),
     ({"tier1.phi_star_deg": 95.0}, ["phi_star_deg = 95", "(0, 90)"]),
     ({"tier1.phi_star_deg": 0.5}, ["phi_star_deg = 0.5", "[1, 60]"]),
+    ({"tier1.phi_star_deg": 0.0}, ["phi_star_deg = 0", "(0, 90)"]),
+    ({"tier1.phi_max_deg": 90.0}, ["phi_max_deg = 90", "(0, 90)"]),
     ({"tier1.c_star": 1.0}, ["c_star = 1", "(0, 1)"]),
+    ({"tier1.c_star": 0.0}, ["c_star = 0", "(0, 1)"]),
+    ({"tier1.c_star": -0.2}, ["c_star = -0.2", "(0, 1)"]),
     ({"tier1.dpsi_dc_deg": -10.0}, ["dpsi_dc_deg = -10", "[0, inf)"]),
     ({"initial.c0": 1.2}, ["c0 = 1.2", "(0, 1)"]),
     ({"initial.c0": 0.0}, ["c0 = 0", "(0, 1)"]),
     ({"initial.A0": 1.5, "initial.B0": 0.9}, ["A0 = 1.5, B0 = 0.9", "(pi/6) A0 + (sqrt(3)/4) B0 <= 1",
                                               "1.175"]),
     ({"initial.A0": 0.5, "initial.B0": 0.6}, ["A0 = 0.5, B0 = 0.6", "B0 <= A0"]),
+    ({"initial.B0": -0.1}, ["B0 = -0.1", "[0, 1.90986]"]),
     ({"initial.theta_p0_deg": 120.0}, ["theta_p0_deg = 120", "(-90, 90]"]),
     ({"regularization.lambda": 0.0}, ["lambda = 0", "(0, inf)"]),
     ({"regularization.lambda": -5.0}, ["lambda = -5", "(0, inf)"]),
@@ -93,6 +98,7 @@ BAD = [
     ({"regularization.nu": 1.0}, ["nu = 1", "(-1, 1)"]),
     ({"regularization.lambda": "big"}, ["lambda = 'big' is not a number", "(0, inf)"]),
     ({"tier2.a0_deg": 0.0}, ["a0_deg = 0", "(0, 90)"]),
+    ({"tier2.a0_deg": 90.0}, ["a0_deg = 90", "(0, 90)"]),
     ({"tier2.a2_deg": 45.0}, ["a2_deg = 45", "[-30, 30]"]),
     ({"tier2.sharpness": 0.0}, ["sharpness = 0", "(0, inf)"]),
     ({"tier2.n_search": 2.5}, ["n_search = 2.5 is not an integer", "[0, 1024]"]),
@@ -113,6 +119,7 @@ BAD = [
 def test_bad_values_fail_at_load_naming_value_and_range(changes, fragments):
     with pytest.raises(ParamError) as err:
         Params.from_dict(_doc(**changes))
+    print(f"\n{changes}: {err.value}")
     for fragment in fragments:
         assert fragment in str(err.value)
     assert isinstance(err.value, ValueError)
@@ -167,3 +174,26 @@ def test_to_dict_round_trips_through_from_dict():
     back = Params.from_dict(doc)
     for tier in sorted(tiers.KERNELS):
         assert np.array_equal(back.array(tier), params.array(tier))
+
+
+def test_every_parameter_is_documented_with_its_range():
+    """docs/model_validation.md lists every key of every section with the accepted range the
+    code declares (a parameter added or re-ranged without its documentation fails here)."""
+    from dataclasses import fields
+    from pathlib import Path
+
+    from contfab.params import SECTIONS
+
+    doc = (Path(__file__).parent.parent / "docs" / "model_validation.md").read_text()
+    for name, cls in SECTIONS.items():
+        start = doc.index(f"`[{name}]`")
+        block = doc[start:doc.find("\n`[", start + 1)]
+        for f in fields(cls):
+            key = f.metadata["key"] or f.name
+            row = next((line for line in block.splitlines() if line.startswith(f"| `{key}` |")),
+                       None)
+            assert row is not None, f"[{name}] {key} is not in the parameter table"
+            if name == "tier2" and key == "fabric_law":
+                assert all(law in row for law in cls.LAWS), row
+            else:
+                assert f"`{f.metadata['range']}`" in row, (row, str(f.metadata["range"]))

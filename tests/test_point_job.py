@@ -44,6 +44,34 @@ def test_point_writes_the_dem_columns_a_sidecar_and_plots(tmp_path, capsys):
                                                      "history.png"]
 
 
+def test_point_with_a_parameter_file_and_tier_2_writes_the_fabric_columns(tmp_path, capsys):
+    """Issue 3's CLI form `contfab point PATH --params FILE --tier T --out DIR`: the file's
+    values are used (sidecar), the tier-2 fabric columns of the DEM's CSV are filled."""
+    from conftest import FIXED_PARAMS
+    from contfab.params import load_params
+
+    out = tmp_path / "run2"
+    assert main(["point", "simple_shear_reversal", "--params", str(FIXED_PARAMS), "--tier", "2",
+                 "--out", str(out), "--increment", "5e-3"]) == 0
+    header, rows = read_csv(out / "history.csv")
+    assert tuple(header) == HISTORY_COLUMNS + mp.EXTRA_COLUMNS
+    col = {c: np.array([float(r[header.index(c)]) for r in rows])
+           for c in ("z", "A", "B", "theta_p", "c", "RP", "gamma", "stage")}
+    assert col["z"] == pytest.approx(np.pi * col["A"], rel=1e-12)
+    assert col["B"][0] == 0.0 and col["B"][-1] > 0.05       # the fabric turns anisotropic
+    # forward shear (L_xy > 0): contacts gather toward the compression axis at -45°, and
+    # toward +45° after the reversal (measured -55.9° and +58.5°)
+    forward_end = np.flatnonzero(col["stage"] == 0)[-1]
+    assert -np.pi / 2 < col["theta_p"][forward_end] < 0.0 < col["theta_p"][-1] < np.pi / 2
+    meta = json.loads((out / "history.json").read_text())
+    assert meta["tier"] == 2
+    assert meta["params"] == load_params(FIXED_PARAMS).with_tier(2).to_dict()
+    assert (out / "history.png").stat().st_size > 10_000
+    print(f"\ncontfab point simple_shear_reversal --params {FIXED_PARAMS.name} --tier 2: {len(rows)} rows, "
+          f"at γ = {col['gamma'][-1]:.2f}: R/P {col['RP'][-1]:.4f}, c {col['c'][-1]:.4f}, "
+          f"z {col['z'][-1]:.3f}, B {col['B'][-1]:.3f}, θp {np.degrees(col['theta_p'][-1]):.1f}°")
+
+
 def test_probe_family_writes_one_history_per_probe_and_the_envelope(tmp_path):
     out = tmp_path / "probes"
     assert main(["point", "stress_probes", "--out", str(out), "--tier", "0"]) == 0
