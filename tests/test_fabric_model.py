@@ -248,32 +248,96 @@ NEAR_APEX_FLICKER = (
 """State, strain and spin increments of step 150, point 97 of the random-increment test
 below at law "balance mean-field", seed 1478576672, scale -2.855690995026853 (found by a
 150-example soak of that test on 2026-12-02): σ_n = 0, B/A = 0.64 at θp = -19.5°, c = 0.769.
-The update fails (status -1) at this increment and at every halving of it (σ_n = 0 makes
-the problem scale-free: step cutting cannot help)."""
+The update failed (status -1) at this increment and at every halving of it (σ_n = 0 makes
+the problem scale-free: step cutting cannot help): Newton from every start stalled where
+its Jacobian is nearly singular (fabric_model._scan_return says why), and the apex
+fallback took some of the increments nearby. The face scan solves them."""
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
-    "known defect (issue 3, found 2026-12-02 by a soak of the 1e5-increment test): from "
-    "σ_n = 0 with a strong fabric (B/A = 0.64, mean-field balance law) the face solve fails "
-    "at some volumetric strains and the least-dilatant-plane apex fallback takes others: the "
-    "statuses flicker between face (P ~ 0.7-0.9), apex (σ = 0) and failed (-1) along a "
-    "1-parameter family of increments whose face solutions are continuous"))
+NEAR_APEX_PARAMS = model_params(**dict(ANISO, kappa_a=1.0, k_c=1.0, k_o=1.0))
+"""The parameters of that test example (the mean-field balance law)."""
+
+
+def _near_apex_family(turn, half_tr):
+    """NEAR_APEX_FLICKER's increments with the principal axes of their deviatoric part turned
+    by ``turn`` and tr Δε / 2 = ``half_tr`` (an array), from σ_n = 0: (stress, state,
+    tangent, status, increments)."""
+    state, de0, dw = NEAR_APEX_FLICKER
+    dev = (0.5 * (de0[0] - de0[1]) + 0.5j * de0[2]) * np.exp(2j * turn)
+    n = len(half_tr)
+    de = np.stack([half_tr + dev.real, half_tr - dev.real, np.full(n, 2 * dev.imag)], 1)
+    s, q, t, status = update(NEAR_APEX_PARAMS, np.zeros((n, 3)), np.tile(state, (n, 1)), de,
+                             np.full(n, dw))
+    return s, q, t, status, de
+
+
+def _check_face_points(params, stress, state, de, dw, cases):
+    """Each case's returned state on its own surface, and its tangent equal to central
+    differences of the whole update (the pattern of the dumped-increment tests below)."""
+    for k in cases:
+        s1, q1, t1, status = _update(params, stress, state, de[k], dw)
+        assert status == fm.STATUS_FACE
+        assert abs(_own_yield(params, s1, q1)) <= 1e-10 * np.abs(s1).max()
+        h = 1e-7 * np.abs(de[k]).max()
+        fd = np.empty((3, 3))
+        for j in range(3):
+            e = np.zeros(3)
+            e[j] = h
+            fd[:, j] = (_update(params, stress, state, de[k] + e, dw)[0]
+                        - _update(params, stress, state, de[k] - e, dw)[0]) / (2 * h)
+        assert np.abs(t1 - fd).max() <= 1e-5 * np.abs(fd).max()
+
+
 def test_near_apex_return_from_zero_stress_is_continuous_in_the_increment():
     # The increment above with its volumetric part tr Δε / 2 shifted by -2e-4 .. +1e-4 (31
-    # values; R_tr/P_tr from 4.4 to 10.0): the face solutions found (P from 1.24 down to 0.68,
-    # R/P 0.449) vary linearly through the whole range, and from σ_n = -1e-3 I (P_n = 1e-3)
-    # the update at tr Δε / 2 = -2.37e-4 returns the face with P = 0.662 where σ_n = 0 returns
-    # the apex, σ = 0 (measured with 116a88d's kernels: 1 of 31 failed, 5 at the apex).
-    prm = model_params(**dict(ANISO, kappa_a=1.0, k_c=1.0, k_o=1.0))
+    # values; R_tr/P_tr from 4.4 to 10.0): the face solutions (P from 1.24 down to 0.66,
+    # R/P 0.449) vary linearly through the whole range; from σ_n = -1e-3 I (P_n = 1e-3) the
+    # update at tr Δε / 2 = -2.37e-4 returned the face with P = 0.662 where σ_n = 0 returned
+    # the apex (with 116a88d's kernels: 1 of 31 failed, 5 at the apex; the face scan since).
     state, de0, dw = NEAR_APEX_FLICKER
     half_tr = 0.5 * (de0[0] + de0[1]) + np.linspace(-2e-4, 1e-4, 31)
-    de = np.tile(de0, (31, 1))
-    de[:, :2] += (half_tr - 0.5 * (de0[0] + de0[1]))[:, None]
-    s, q, _, status = update(prm, np.zeros((31, 3)), np.tile(state, (31, 1)), de, np.full(31, dw))
+    s, q, _, status, de = _near_apex_family(0.0, half_tr)
     p = -0.5 * (s[:, 0] + s[:, 1])
     assert np.isfinite(s).all() and np.isfinite(q).all()
     assert (status == fm.STATUS_FACE).all(), status
     assert np.all(np.diff(p) < 0)
+    assert p[0] == pytest.approx(1.2434, abs=1e-4) and p[-1] == pytest.approx(0.6621, abs=1e-4)
+    # linear in the increment: second differences at round-off against the first
+    assert np.abs(np.diff(p, 2)).max() < 1e-3 * np.abs(np.diff(p)).min()
+    _check_face_points(NEAR_APEX_PARAMS, np.zeros(3), state, de, dw, [0, 20, 30])
+
+
+@pytest.mark.parametrize("turn_deg", [0.0, 60.0, 165.0])
+def test_near_apex_family_meets_the_apex_continuously(turn_deg):
+    # The same increments with the deviator turned by 0°, 60°, 165° and tr Δε / 2 from -6.4e-4
+    # to +3.6e-4 (R_tr/P_tr from 2.5 through P_tr = 0 to tension): the face solutions fall
+    # linearly to P = 0 and the apex takes over there, σ continuous, never -1. Measured
+    # (2026-12-03): the boundary lies at tr Δε / 2 = +1.08e-4, -2.82e-4, -2.92e-4 (P_tr =
+    # -0.215, +0.565, +0.585), the last face points before it at P = 0.004, 0.002, 0.005.
+    # At 0° the flows of this fabric dilate more than ψ's isotropic part (tr/(ε1 - ε2) =
+    # +0.025 against sin ψ̄ = -0.012): tier 1's criterion put the increments with face points
+    # of P < 0.29 at the apex, and with 8190ff4's kernels the family went face, -1, apex and
+    # face again in turn (3 failed, jumps of P up to 0.91). At 165° the solve from tier 1's
+    # start reached σ ~ 1e-14 just past the boundary and returned it as a face point
+    # (f/|σ| = 0.51, not on its own surface). Each face point lies on its own surface, and
+    # its tangent is the consistent one at the first and at the last with P > 0.005.
+    state, de0, dw = NEAR_APEX_FLICKER
+    half_tr = 0.5 * (de0[0] + de0[1]) + np.linspace(-3e-4, 7e-4, 201)
+    s, q, _, status, de = _near_apex_family(np.radians(turn_deg), half_tr)
+    p = -0.5 * (s[:, 0] + s[:, 1])
+    assert set(status.tolist()) <= {fm.STATUS_FACE, fm.STATUS_APEX}, status
+    face = np.flatnonzero(status == fm.STATUS_FACE)
+    apex = np.flatnonzero(status == fm.STATUS_APEX)
+    assert len(face) > 20 and len(apex) > 20
+    step = np.abs(np.diff(p[face[:20]])).max()          # P's change per increment on the face
+    assert np.abs(np.diff(p)).max() <= 1.05 * step     # continuous through the boundary
+    assert (s[apex] == 0.0).all() and (p[face] > 0.0).all()
+    for k in face:
+        assert abs(_own_yield(NEAR_APEX_PARAMS, s[k], q[k])) <= 1e-10 * np.abs(s[k]).max()
+    # the apex only past the face points, up to a band of one step where P ~ 0
+    assert p[apex.min():].max() <= step
+    last = face[p[face] > 0.5 * step].max()
+    _check_face_points(NEAR_APEX_PARAMS, np.zeros(3), state, de, dw, [face[0], last])
 
 
 def _wandering_increments(rng, n, steps, scale):

@@ -24,8 +24,18 @@ Yield f and flow N: :mod:`contfab.models.slip_planes`; fabric laws:
    analytic Jacobian (8x8; the slip planes condensed into it), from one cutting-plane step
    (near the surface) or tier 1's closed-form coaxial return; backtracking on max |residual|.
    Where Newton fails from both (increments of hundreds of percent), the same problem is
-   reached by continuation in the trial stress (:func:`_continuation_return`).
-   The face solution is accepted when it converged with Δγ >= 0 and P > 0 and its planes
+   reached by continuation in the trial stress (:func:`_continuation_return`). Near the apex
+   (returns long against the stress they leave, |σ_tr - σ| >> P) Newton in σ converges only
+   from starts within ~P of the solution, as N turns with the direction of σ at a rate 1/|σ|;
+   where every start fails, and for every trial that tier 1's apex criterion (5.) takes on an
+   anisotropic fabric, the face scan solves it (:func:`_scan_return`): at a fixed state,
+   σ = P σ̂(α) (σ̂ the face point at P = 1 of principal direction α) makes the stress
+   equations σ_tr = P σ̂(α) + Δγ C N(α) linear in (P, Δγ) and leaves one equation in α,
+   sampled over [0, π) and refined in each bracket; a root with Δγ > 0 and P > 0, at the
+   state of its own step, starts Newton.
+   The face solution is accepted when it converged with Δγ >= 0 and P > 0, it lies on its
+   own surface to YIELD_TOL·|σ| (:func:`_resolved`: Newton can reach σ ~ 0 past the apex,
+   where f/|σ_tr| vanishes in any direction) and its planes
    are the arcs' maxima (status 1): where φ depends on θ an arc can have several local
    maxima (its ends, corners of the clamp of φ: slip_planes), and a solve on a lesser one is
    solved again from the searched planes (:func:`_face_return`). Where each one-plane
@@ -36,10 +46,17 @@ Yield f and flow N: :mod:`contfab.models.slip_planes`; fabric laws:
    step: on loose states the arc's maxima are corners of φ's clamp next to the arc's ends,
    and a plane a step took past an end otherwise stalled the solve.
 5. Apex (status 2): σ = 0, all of C⁻¹σ_tr plastic, c = c_n exp(P_tr/K), zero tangent
-   (as tier 1), when C⁻¹σ_tr dilates at least as much as the flow: tier 1's criterion
-   G P_tr + K sin ψ R_tr <= 0 with the isotropic part of ψ(θ) at c_apex (exactly tier 1's at
-   isotropy), or — when the face solve finds no point — with the least dilatant plane.
-   A face solve that fails outside that region is a failure (status -1).
+   (as tier 1), where C⁻¹σ_tr dilates at least as much as the admissible flow of its
+   direction: the region is set by the plastic potential, not the yield function (DESIGN
+   §4). With φ and ψ the same on every plane (a2 = b2 = 0) that is tier 1's criterion
+   G P_tr + K sin ψ R_tr <= 0 (P <= 0 of its closed-form return), with ψ(θ)'s isotropic part
+   at c_apex. Otherwise the flow's dilatancy depends on its direction (over the face of the
+   start state of tests/test_fabric_model.py ``NEAR_APEX_FLICKER``, B/A = 0.64, tr/(ε1 - ε2)
+   runs from -0.076 to +0.032 with the direction, sin ψ̄ = -0.012),
+   and the scan decides at the apex's state: the apex where the return along an admissible
+   flow passes the apex (a root with Δγ > 0 and P <= 0: C⁻¹σ_tr = Δγ N - P C⁻¹σ̂, the flow
+   plus a dilation) and no root gives a face point; face and apex meet continuously there.
+   A face root whose solve fails is a failure (status -1), never the apex.
 6. Δεp = C⁻¹(σ_tr - σ_{n+1}), gp += Δεp1 - Δεp2, and the fabric is Φ(q_n, Δεp, c_{n+1})
    (admissible; equal to the q of the solve to its tolerance); if Φ had to project it onto
    the admissible set, status 3.
@@ -53,8 +70,9 @@ against central differences of the whole update (through the fabric's projection
 acts, and on a ridge: J of the ridge return there).
 
 **Failures** (status -1): non-finite input, c outside (0, 1), a face solve that does not
-converge (or whose ridge return leaves 0 <= λ <= 1, or finds a third plane higher) outside
-the apex region, a non-finite result. The point returns its input stress
+converge (or whose ridge return leaves 0 <= λ <= 1, or finds a third plane higher) from any
+start, the scan's included, where the scan does not put the trial at the apex, a non-finite
+result. The point returns its input stress
 and state and the elastic tangent; nothing non-finite is produced.
 
 A step past a limit point of the regularized model fails too, by design. f's fabric
@@ -75,7 +93,7 @@ contraction (why, and what each flag gains: :mod:`contfab.jit_flags`).
 
 Inlined at numba's level (``inline="always"``): the LU and its solves (with a constant
 size, so they unroll), the residuals (``_residual``, ``_assemble``), the planes' check and
-step, and of the callees ``slip_planes.yield_and_flow`` with ``plane_terms`` and
+step, the face point's check (``_resolved``), and of the callees ``slip_planes.yield_and_flow`` with ``plane_terms`` and
 ``fabric_law.relaxation_step`` (inside ``fabric_step``). Each call of these passed the
 scratch's arrays as a dozen fields apiece; inlining them took the bench's tier-2 update
 from 3.3 to 2.8 µs, outputs bitwise unchanged (measured, 2026-12-02). Inlining the plane
@@ -134,6 +152,22 @@ PLANE_STEP_TOL = 1e-9
 """Local solve: the planes' own Newton steps (radians) at convergence (values exact to ~δθ²)."""
 CONTINUATION_STEPS = 4
 """Fallback of the local solve: trial stresses σ_n + (k/this) CΔε, k = 1..this, in turn."""
+RESOLVED_STRESS = 0.1
+"""Local solve: a face point with |σ| below this · |σ_tr| is checked on its own surface with
+the plane search (:func:`_resolved`)."""
+SCAN_POINTS = 32
+"""Face scan (:func:`_scan_return`): principal directions sampled over [0, π)."""
+SCAN_MAXIT = 100
+SCAN_RHO_TOL = 1e-14
+SCAN_ROOT_TOL = 1e-12
+SCAN_ANGLE_TOL = 1e-13
+"""Face scan: iterations of each 1-D solve; the last step of ρ = R/P (:func:`_unit_face`);
+|g| (a sine; its round-off is ~1e-14) and the bracket (radians) that end a root's
+refinement (:func:`_wedge_root`): a bracket that shrinks with |g| above SCAN_ROOT_TOL holds
+a jump of g, not a root."""
+SCAN_STATE_MAXIT = 4
+SCAN_STATE_TOL = 1e-10
+"""Face scan: a root's state (c, A, Bc, Bs) made its own step's, to this change at most."""
 PREDICTED_PLANE_STEP = 1e-2
 PREDICTED_F_GAP = 1e-6
 """Elastic check from the predicted plane maxima (:func:`_trial_yield`): the largest plane
@@ -322,12 +356,13 @@ def _assemble(x, c_n, qn, prm, yf, sc, s_ref, res, jac):
 
 
 @njit(**KERNEL)
-def _dilatancy_range(c, a, bc, bs, prm, dpz):
-    """(sin ψ̄, sin ψ_min) at c: the isotropic part of ψ(θ) and its smallest value over planes."""
-    phi0, pc, ps, psi0, qc, qs, _, _, phi_lo, phi_hi = fabric_terms(c, a, bc, bs, prm, dpz)
+def _isotropic_dilatancy(c, a, bc, bs, prm, dpz):
+    """sin ψ̄ at (c, A, Bc, Bs): the isotropic part of ψ(θ), clamped as a plane's is (to
+    [-φ, φ], φ the isotropic part of φ(θ) clamped to [φ_min, φ_max]) — every plane's where
+    the fabric terms vanish (a2 = b2 = 0), and then tier 1's."""
+    phi0, _, _, psi0, _, _, _, _, phi_lo, phi_hi = fabric_terms(c, a, bc, bs, prm, dpz)
     phi = min(max(phi0, phi_lo), phi_hi)
-    amp = hypot(qc, qs)
-    return np.sin(min(max(psi0, -phi), phi)), np.sin(max(psi0 - amp, -phi_hi))
+    return np.sin(min(max(psi0, -phi), phi))
 
 
 @njit(**KERNEL)
@@ -662,6 +697,30 @@ def _planes_are_maxima(prm, sc):
     return abs(f) <= YIELD_TOL * s
 
 
+@njit(**KERNEL, inline="always")
+def _resolved(prm, sc, s_ref):
+    """Whether the face point of a converged solve (row V_X) lies on its own surface,
+    |f(σ; c, q)| <= YIELD_TOL·|σ|, as the elastic check finds it.
+
+    The solve's residuals are relative to |σ_tr|, so they bound f/|σ| only where |σ| is of
+    the trial's order: a point with |σ| >= RESOLVED_STRESS·|σ_tr| (every point but those near
+    the apex) passes (f/|σ| <= 1e-11); below, f is evaluated with the plane search. Newton
+    reaches σ ~ 0 from trials past the apex boundary, where f/|σ_tr| -> 0 whatever the
+    direction of σ (measured: P = 1.8e-14 with f/|σ| = 0.51, from tier 1's start,
+    tests/test_fabric_model.py ``test_near_apex_family_meets_the_apex_continuously``): such a
+    point is σ = 0 to the solve's accuracy, the apex's (:func:`_scan_return` decides)."""
+    x = sc.v[V_X]
+    s = hypot(0.5 * (x[0] + x[1]), hypot(0.5 * (x[0] - x[1]), x[2]))
+    if s >= RESOLVED_STRESS * s_ref:
+        return True
+    searched = sc.v[V_DTH]
+    searched[0] = sc.v[V_THETA][0]
+    searched[1] = sc.v[V_THETA][1]
+    fab = fabric_terms(x[4], x[5], x[6], x[7], prm, sc.dpz)
+    f = yield_value(x[0], x[1], x[2], fab, prm[16], int(prm[17]), searched)
+    return abs(f) <= YIELD_TOL * s
+
+
 @njit(**KERNEL)
 def _face_return(c_n, qn, prm, sc, s_ref):
     """The face solve from the unknowns and planes in ``sc.v`` (rows V_X, V_THETA): (converged
@@ -825,6 +884,260 @@ def _continuation_return(rotated, c_n, qn, prm, sc):
     return face, projected, ridge
 
 
+# --------------------------------------------------------------------------- the face scan
+
+@njit(**KERNEL)
+def _unit_face(alpha, fab, prm, sc, rho):
+    """ρ = R/P of the face point at P = 1 with major principal direction α,
+    σ̂ = (-1 + ρ cos 2α, -1 - ρ cos 2α, ρ sin 2α), f(σ̂) = 0; ``sc.yfs[0]``, ``sc.planes[0:2]``
+    and row V_THETA then hold the yield/flow terms there (planes searched exactly,
+    slip_planes.yield_and_flow; with ``n_search`` = 0 from tier 1's planes α ± (π/4 - φ0/2)).
+
+    Newton on f(ρ) from ``rho``, safeguarded by bisection on the bracket [0, 1]: f < 0 at
+    ρ = 0 (σ̂ = -I: h = -tan φ(θ) < 0 on every plane) and f > 0 at ρ = 1 (σ1 = 0: on each arc
+    the planes next to the σ1-plane carry |τ| > 0 and σn ~ 0, so both arc maxima are
+    positive). At fixed planes h is affine in ρ, so Newton takes a few steps (warm starts
+    from the neighbouring direction of the scan).
+    """
+    ca = np.cos(2.0 * alpha)
+    sa = np.sin(2.0 * alpha)
+    theta = sc.v[V_THETA]
+    yf = sc.yfs[0]
+    n_search = int(prm[17])
+    lo = 0.0
+    hi = 1.0
+    for _ in range(SCAN_MAXIT):
+        if n_search == 0:
+            theta[0] = alpha + 0.25 * np.pi - 0.5 * fab[0]
+            theta[1] = alpha - 0.25 * np.pi + 0.5 * fab[0]
+        yield_and_flow(-1.0 + rho * ca, -1.0 - rho * ca, rho * sa, fab, prm[16], True, n_search,
+                       theta, sc.planes[0:2], yf)
+        f = yf[YF_F]
+        if f > 0.0:
+            hi = rho
+        else:
+            lo = rho
+        slope = (yf[YF_FS] - yf[YF_FS + 1]) * ca + yf[YF_FS + 2] * sa
+        step = -f / slope if slope > 0.0 else np.inf
+        if not lo < rho + step < hi:
+            step = 0.5 * (lo + hi) - rho
+        if abs(step) <= SCAN_RHO_TOL:
+            return rho
+        rho += step
+    return rho
+
+
+@njit(**KERNEL)
+def _wedge(alpha, fab, prm, sc, rho, s_ref):
+    """(g, P, Δγ, ρ) of the face direction α (ρ: :func:`_unit_face`, warm start ``rho``).
+
+    The returns from the face points of direction α, σ_tr = P σ̂ + Δγ C N(σ̂) with P, Δγ >= 0,
+    fill the wedge spanned by σ̂ and C N (N is homogeneous of degree 0 in σ: one flow per
+    direction): σ_tr lies in its plane where
+
+        g = t · n / (|t| |n|) = 0,   n = σ̂ × C N,   t = σ_tr / |σ_tr|   (Voigt components),
+
+    and then P = |σ_tr| (t × C N)·n/|n|², Δγ = |σ_tr| (σ̂ × t)·n/|n|² (Cramer; elsewhere those
+    of its projection onto the plane). g is the sine of the angle between σ_tr and the
+    plane; t (``s_ref`` = |σ_tr|) keeps the products in range for any size of σ_tr.
+    """
+    rho = _unit_face(alpha, fab, prm, sc, rho)
+    bulk = prm[0]
+    shear = prm[1]
+    yf = sc.yfs[0]
+    ttr = sc.v[V_TTR]
+    t0 = ttr[0] / s_ref
+    t1 = ttr[1] / s_ref
+    t2 = ttr[2] / s_ref
+    ca = np.cos(2.0 * alpha)
+    a0 = -1.0 + rho * ca
+    a1 = -1.0 - rho * ca
+    a2 = rho * np.sin(2.0 * alpha)
+    b0 = (bulk + shear) * yf[YF_N] + (bulk - shear) * yf[YF_N + 1]
+    b1 = (bulk - shear) * yf[YF_N] + (bulk + shear) * yf[YF_N + 1]
+    b2 = shear * yf[YF_N + 2]
+    n0 = a1 * b2 - a2 * b1
+    n1 = a2 * b0 - a0 * b2
+    n2 = a0 * b1 - a1 * b0
+    nn = n0 * n0 + n1 * n1 + n2 * n2
+    if not nn > 0.0:
+        return 0.0, 0.0, 0.0, rho
+    g = (t0 * n0 + t1 * n1 + t2 * n2) / np.sqrt(nn * (t0 * t0 + t1 * t1 + t2 * t2))
+    p = ((t1 * b2 - t2 * b1) * n0 + (t2 * b0 - t0 * b2) * n1 + (t0 * b1 - t1 * b0) * n2) / nn
+    dgam = ((a1 * t2 - a2 * t1) * n0 + (a2 * t0 - a0 * t2) * n1 + (a0 * t1 - a1 * t0) * n2) / nn
+    return g, p * s_ref, dgam * s_ref, rho
+
+
+@njit(**KERNEL)
+def _wedge_root(a, b, ga, gb, fab, prm, sc, rho, s_ref):
+    """(α, g, P, Δγ, ρ): a zero of :func:`_wedge`'s g in the bracket [a, b] (g(a) = ga and
+    g(b) = gb of opposite signs), by regula falsi with the Illinois modification (the value
+    at an end kept twice is halved: superlinear, and the bracket shrinks to a jump of g,
+    where the flow jumps across a ridge of f). Stops at |g| <= SCAN_ROOT_TOL or a bracket of
+    SCAN_ANGLE_TOL; the scratch holds the terms at the returned α."""
+    side = 0
+    m = a
+    g = ga
+    p = 0.0
+    dgam = 0.0
+    for _ in range(SCAN_MAXIT):
+        m = (a * gb - b * ga) / (gb - ga)
+        g, p, dgam, rho = _wedge(m, fab, prm, sc, rho, s_ref)
+        if abs(g) <= SCAN_ROOT_TOL or b - a <= SCAN_ANGLE_TOL:
+            break
+        if (g > 0.0) == (ga > 0.0):
+            a = m
+            ga = g
+            if side == -1:
+                gb *= 0.5
+            side = -1
+        else:
+            b = m
+            gb = g
+            if side == 1:
+                ga *= 0.5
+            side = 1
+    return m, g, p, dgam, rho
+
+
+@njit(**KERNEL)
+def _scan_face(a, b, ga, gb, m, p, dgam, rho, c_n, qn, z, prm, sc, s_ref):
+    """The face solve from a root (α = ``m``, P = ``p`` > 0, Δγ = ``dgam`` > 0, ρ = ``rho``;
+    its terms in the scratch) of the scan's bracket [a, b] (g = ``ga``, ``gb`` at its ends)
+    at the state ``z`` = (c, A, Bc, Bs) (:func:`_scan_return`): (face, fabric projected, on a
+    ridge, at the apex).
+
+    The root is refined at the state of its own step, c = c_n exp(-Δγ tr N),
+    q = Φ(q_n, Δγ N, c), by fixed-point iteration (to SCAN_STATE_TOL, while the bracket
+    holds; the fabric's change is a small part of the step's, so each iteration shrinks the
+    state's error ~100-fold at the increments measured), then Newton starts from it
+    (:func:`_face_return`). At the apex: the root at its own state lies past it (P <= 0), or
+    the solve converged to σ ~ 0 (:func:`_resolved`).
+    """
+    x = sc.v[V_X]
+    theta = sc.v[V_THETA]
+    fq = sc.v[V_FQ]
+    law = int(prm[18])
+    theta_root = (theta[0], theta[1])
+    for _ in range(SCAN_STATE_MAXIT):
+        yf = sc.yfs[0]
+        c1 = c_n * np.exp(-dgam * yf[YF_TR])
+        fabric_step(qn[0], qn[1], qn[2], dgam * yf[YF_N], dgam * yf[YF_N + 1],
+                    dgam * yf[YF_N + 2], c1, law, prm[19], prm[20], prm[21], prm[22], prm[23],
+                    prm[24], fq, sc.dq, sc.ws)
+        change = max(abs(c1 - z[0]), abs(fq[0] - z[1]), abs(fq[1] - z[2]), abs(fq[2] - z[3]))
+        z = (c1, fq[0], fq[1], fq[2])
+        if change <= SCAN_STATE_TOL:
+            break
+        fab = fabric_terms(z[0], z[1], z[2], z[3], prm, sc.dpz)
+        ga, _, _, _ = _wedge(a, fab, prm, sc, rho, s_ref)
+        gb, _, _, _ = _wedge(b, fab, prm, sc, rho, s_ref)
+        if (ga > 0.0) == (gb > 0.0):
+            break        # the root left its bracket: the last one stands
+        m, g, p, dgam, rho = _wedge_root(a, b, ga, gb, fab, prm, sc, rho, s_ref)
+        theta_root = (theta[0], theta[1])
+        if not (dgam > 0.0 and p > 0.0):
+            return False, False, False, dgam > 0.0 and abs(g) <= SCAN_ROOT_TOL
+    ca = np.cos(2.0 * m)
+    x[0] = p * (-1.0 + rho * ca)
+    x[1] = p * (-1.0 - rho * ca)
+    x[2] = p * rho * np.sin(2.0 * m)
+    x[3] = dgam
+    for i in range(4):
+        x[4 + i] = z[i]
+    theta[0] = theta_root[0]
+    theta[1] = theta_root[1]
+    face, projected, ridge = _face_return(c_n, qn, prm, sc, s_ref)
+    if face and _resolved(prm, sc, s_ref):
+        return True, projected, ridge, False
+    return False, False, False, face
+
+
+@njit(**KERNEL)
+def _scan_return(c_n, qn, c_apex, prm, sc, s_ref):
+    """The face solve by a scan of the face's directions, and the apex decision: (face,
+    fabric projected, on a ridge, apex). The fallback where Newton from the other starts
+    failed, and the solve of every trial that tier 1's criterion puts at the apex.
+
+    **Why.** Near the apex the return is large against the stress it leaves (|σ_tr - σ| >>
+    P), and N, homogeneous of degree 0 in σ, turns with the direction of σ at a rate 1/|σ|:
+    the Jacobian's Δγ C ∂N/∂σ outweighs its identity by |σ_tr|/P, and Newton in σ converges
+    only from starts within ~P of the solution. Measured (tests/test_fabric_model.py,
+    ``NEAR_APEX_FLICKER``: σ_n = 0, R_tr/P_tr = 7, B/A = 0.64): the face point has P = 0.86,
+    R/P = 0.449 and a flow dilating at tr/(ε1 - ε2) = +0.025 (against C⁻¹σ_tr's -0.085);
+    tier 1's closed-form start, its Δγ capped at R_tr/(2G), leaves R = R_tr/2 = 2.4 at
+    P = 0.63, and Newton from it stalls at max |residual| 0.04 where its Jacobian is nearly
+    singular (uncapped, the start serves that family down to P ~ 0.4, not nearer the apex);
+    the trial is far from the surface (f_tr = 1.05 |σ_tr|: no cutting-plane start), and
+    continuation in σ_tr from σ_n = 0 poses the same problem, scaled, at every stage.
+
+    **The scan.** With the state (c, q) fixed, σ = P σ̂(α) (σ̂ the face point at P = 1 of
+    direction α, :func:`_unit_face`) and N = N(α), so the stress equations
+    σ_tr = P σ̂(α) + Δγ C N(α) are linear in (P, Δγ) and leave one scalar equation in α,
+    g(α) = 0 (:func:`_wedge`), well posed at any P, P = 0 included. g is sampled at
+    SCAN_POINTS directions over [0, π) (α = π is α = 0) at the apex's state
+    (c_apex, Φ(q_n, C⁻¹σ_tr, c_apex)) and each sign change refined (:func:`_wedge_root`).
+    A root with Δγ > 0 and P > 0 is refined at the state of its own step and starts the
+    face solve (:func:`_scan_face`); roots with Δγ <= 0 (flows running backwards) are not
+    returns.
+
+    **The apex** (σ = 0, Δεp = C⁻¹σ_tr, DESIGN §4: its region is set by the plastic
+    potential, because the flow is non-associated): a root with Δγ > 0 and P <= 0 says that
+    C⁻¹σ_tr = Δγ N + |P| C⁻¹(-σ̂): the trial strain is the flow N plus the strain of taking
+    a compression σ̂ off, i.e. it dilates at least as much as the admissible flow N of its
+    direction, and the return along that flow passes the apex — tier 1's criterion
+    G P_tr + K sin ψ R_tr <= 0, which is P <= 0 of its closed-form face return, for a flow
+    that varies with the direction. It is taken at the apex's own state, which a face
+    root's own state reaches as P -> 0: face and apex meet continuously, P -> 0 at the
+    boundary. The apex is returned where such a root exists and none gives a face point
+    (a solve converging to σ ~ 0, :func:`_resolved`, is the apex to its accuracy); a face
+    root whose solve fails leaves the point failed (-1), never at the apex, and so does a
+    trial without a root.
+
+    Cost: ~SCAN_POINTS + 20 solves for ρ, each a few searched evaluations of f and N: about
+    0.25 ms per trial with the shipped parameters, paid only where the other starts failed
+    and by the trials tier 1's criterion puts at the apex. Measured (2026-12-03, 2000 points
+    at σ_n = 0 with B/A = 0.25 under dilating increments, 72 % at the apex): 0.19 ms per
+    update, 6.7 µs before the scan (whose apex came from tier 1's criterion directly).
+    """
+    fq = sc.v[V_FQ]
+    ttr = sc.v[V_TTR]
+    law = int(prm[18])
+    pxx, pyy, pgg = _elastic_strain(ttr[0], ttr[1], ttr[2], prm[0], prm[1])
+    fabric_step(qn[0], qn[1], qn[2], pxx, pyy, pgg, c_apex, law, prm[19], prm[20], prm[21],
+                prm[22], prm[23], prm[24], fq, sc.dq, sc.ws)
+    apex_state = (c_apex, fq[0], fq[1], fq[2])
+    fab0 = fabric_terms(c_apex, fq[0], fq[1], fq[2], prm, sc.dpz)
+    beyond = False
+    unresolved = False
+    step = np.pi / SCAN_POINTS
+    g0, _, _, rho0 = _wedge(0.0, fab0, prm, sc, 0.5, s_ref)
+    ga = g0
+    rho_grid = rho0
+    for j in range(1, SCAN_POINTS + 1):
+        a = (j - 1) * step
+        b = j * step
+        if j < SCAN_POINTS:
+            gb, _, _, rho_grid = _wedge(b, fab0, prm, sc, rho_grid, s_ref)
+        else:
+            gb = g0
+        if (ga > 0.0) != (gb > 0.0):
+            # A bracket: its root at the apex's state decides for the apex; a face root
+            # starts the face solve.
+            m, g, p, dgam, rho = _wedge_root(a, b, ga, gb, fab0, prm, sc, rho_grid, s_ref)
+            if dgam > 0.0 and p > 0.0:
+                face, projected, ridge, past = _scan_face(a, b, ga, gb, m, p, dgam, rho, c_n,
+                                                          qn, apex_state, prm, sc, s_ref)
+                if face:
+                    return True, projected, ridge, False
+                beyond = beyond or past
+                unresolved = unresolved or not past
+            elif dgam > 0.0 and abs(g) <= SCAN_ROOT_TOL:
+                beyond = True
+        ga = gb
+    return False, False, False, beyond and not unresolved
+
+
 # --------------------------------------------------------------------------- one point
 
 @njit(**KERNEL)
@@ -925,7 +1238,9 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
     p_tr = -0.5 * (ttr[0] + ttr[1])
     r_tr = hypot(0.5 * (ttr[0] - ttr[1]), ttr[2])
     # The apex first, as tier 1: at c_apex, C⁻¹σ_tr at least as dilatant as the flow (only
-    # possible where G P_tr <= K R_tr, as |sin ψ| < 1).
+    # possible where G P_tr <= K R_tr, as |sin ψ| < 1). Exact where φ and ψ are the same on
+    # every plane (a2 = b2 = 0); otherwise the flow's dilatancy depends on its direction and
+    # a trial the criterion puts at the apex goes to the face scan, which decides.
     c_apex = c_n * np.exp(p_tr / bulk)
     face = False
     projected = False
@@ -933,10 +1248,13 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
     # (and a plastic trial at a stress too small to resolve — |σ_tr| < 1e-200 (K+G), where
     # Newton's arithmetic underflows — is σ = 0 to that accuracy)
     apex = s_ref < 1e-200 * (bulk + shear)
+    scan = False
     if not apex and shear * p_tr <= bulk * r_tr:
-        spsi_iso, _ = _dilatancy_range(c_apex, q0, bc, bs, prm, sc.dpz)
-        apex = shear * p_tr + bulk * spsi_iso * r_tr <= 0.0
-    if not apex:
+        spsi_iso = _isotropic_dilatancy(c_apex, q0, bc, bs, prm, sc.dpz)
+        if shear * p_tr + bulk * spsi_iso * r_tr <= 0.0:
+            apex = prm[10] == 0.0 and prm[14] == 0.0
+            scan = not apex
+    if not (apex or scan):
         # Near the surface (the common case in a converging global iteration) one cutting-
         # plane step from σ_tr is the better start; otherwise, or if that solve fails,
         # tier 1's coaxial return.
@@ -959,11 +1277,11 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
             face, projected, ridge = _face_return(c_n, qs, prm, sc, s_ref)
         if not face:
             face, projected, ridge = _continuation_return((rxx, ryy, rxy), c_n, qs, prm, sc)
-        # No face point found: the material separates if some plane's flow is less
-        # dilatant than C⁻¹σ_tr; otherwise the local solve failed.
-        if not face:
-            _, spsi_min = _dilatancy_range(c_apex, q0, bc, bs, prm, sc.dpz)
-            apex = shear * p_tr + bulk * spsi_min * r_tr <= 0.0
+        face = face and _resolved(prm, sc, s_ref)
+    # No face point found yet: the scan of the face's directions finds it, or decides the
+    # apex by the flows (a root beyond the apex); otherwise the local solve failed.
+    if not (apex or face):
+        face, projected, ridge, apex = _scan_return(c_n, qs, c_apex, prm, sc, s_ref)
     x = sc.v[V_X]
     if face:
         for j in range(3):
