@@ -340,6 +340,46 @@ def test_near_apex_family_meets_the_apex_continuously(turn_deg):
     _check_face_points(NEAR_APEX_PARAMS, np.zeros(3), state, de, dw, [face[0], last])
 
 
+LOOSE_NEAR_APEX = (np.array([0.0, 0.7567747158251259, 0.9860444464794237, 0.4281694626722962,
+                              0.2211212712763315]),
+                    np.array([-0.00019425724877965815, -0.00017198721761952198,
+                              5.772973167886751e-06]),
+                    np.array([5.581596232161589e-05, -5.4737824791762816e-05,
+                              -0.00017492125131056071]),
+                    -0.0016394188687449396)
+"""(q_n, σ_n, Δε, Δω) of a loose state near the apex with the N = 40 parameters
+(``CALIBRATED``): c = 0.757, B/A = 0.49, φ at its clamp of 1° on most planes (R/P = 0.018 on
+the face), |σ_n| = 2e-4 and a shear increment with P_tr = -3.6e-4, R_tr = 0.10. Along the
+face's directions the flow jumps where an arc's maximum moves to another local maximum (a
+ridge of f), so the scan's g jumps there instead of crossing zero (found by a random
+sample of such trials, 2026-12-03: a scan that took only the zeros of g left 37 of 3000
+failed; it takes the ridge's flows λ N_a + (1 - λ) N_b at a jump since)."""
+
+
+def test_loose_near_apex_family_meets_the_apex_continuously_across_a_ridge_of_the_flow():
+    # The increment above with tr Δε / 2 shifted by -2e-5 .. +2e-5 (201 values): the face
+    # points fall linearly from P = 0.0175 to 0 and the apex takes over (the increment itself:
+    # apex, the return along the ridge's flows passes it). With 8190ff4's kernels the family
+    # flickered between face and apex over its middle third (jumps of P up to 0.0103).
+    state, stress, de0, dw = LOOSE_NEAR_APEX
+    n = 201
+    de = np.tile(de0, (n, 1))
+    de[:, :2] += np.linspace(-2e-5, 2e-5, n)[:, None]
+    s, q, _, status = update(CALIBRATED, np.tile(stress, (n, 1)), np.tile(state, (n, 1)), de,
+                             np.full(n, dw))
+    p = -0.5 * (s[:, 0] + s[:, 1])
+    face = np.flatnonzero(status == fm.STATUS_FACE)
+    apex = np.flatnonzero(status == fm.STATUS_APEX)
+    assert len(face) + len(apex) == n and len(face) > 20 and len(apex) > 20, status
+    assert status[n // 2] == fm.STATUS_APEX and face.max() < apex.min()
+    step = np.abs(np.diff(p[face[:20]])).max()
+    assert np.abs(np.diff(p)).max() <= 1.05 * step and (s[apex] == 0.0).all()
+    for k in face:
+        assert abs(_own_yield(CALIBRATED, s[k], q[k])) <= 1e-10 * np.abs(s[k]).max()
+    last = face[p[face] > 0.5 * step].max()
+    _check_face_points(CALIBRATED, stress, state, de, dw, [face[0], last])
+
+
 def _wandering_increments(rng, n, steps, scale):
     """Random strain increments that keep most points yielding: a loading direction that
     wanders (random walk), a random volumetric ratio, sizes over three decades, random spin."""

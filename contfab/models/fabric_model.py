@@ -927,6 +927,40 @@ def _unit_face(alpha, fab, prm, sc, rho):
     return rho
 
 
+@njit(**KERNEL, inline="always")
+def _unit_stress(alpha, rho):
+    """σ̂ = (-1 + ρ cos 2α, -1 - ρ cos 2α, ρ sin 2α): P = 1, R = ρ, major principal direction α."""
+    ca = np.cos(2.0 * alpha)
+    return -1.0 + rho * ca, -1.0 - rho * ca, rho * np.sin(2.0 * alpha)
+
+
+@njit(**KERNEL, inline="always")
+def _flow_stress(yf, bulk, shear):
+    """C N of the yield/flow terms ``yf`` (N Voigt with engineering shear, C N a stress)."""
+    return ((bulk + shear) * yf[YF_N] + (bulk - shear) * yf[YF_N + 1],
+            (bulk - shear) * yf[YF_N] + (bulk + shear) * yf[YF_N + 1], shear * yf[YF_N + 2])
+
+
+@njit(**KERNEL, inline="always")
+def _cross(a, b):
+    """a × b of two 3-vectors (tuples)."""
+    return a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
+
+
+@njit(**KERNEL, inline="always")
+def _dot(a, b):
+    """a · b of two 3-vectors (tuples)."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@njit(**KERNEL, inline="always")
+def _unit_trial(sc, s_ref):
+    """t = σ_tr / |σ_tr| (row V_TTR; ``s_ref`` = |σ_tr|), which keeps the scan's products in
+    range for any size of σ_tr."""
+    ttr = sc.v[V_TTR]
+    return ttr[0] / s_ref, ttr[1] / s_ref, ttr[2] / s_ref
+
+
 @njit(**KERNEL)
 def _wedge(alpha, fab, prm, sc, rho, s_ref):
     """(g, P, Δγ, ρ) of the face direction α (ρ: :func:`_unit_face`, warm start ``rho``).
@@ -938,43 +972,27 @@ def _wedge(alpha, fab, prm, sc, rho, s_ref):
         g = t · n / (|t| |n|) = 0,   n = σ̂ × C N,   t = σ_tr / |σ_tr|   (Voigt components),
 
     and then P = |σ_tr| (t × C N)·n/|n|², Δγ = |σ_tr| (σ̂ × t)·n/|n|² (Cramer; elsewhere those
-    of its projection onto the plane). g is the sine of the angle between σ_tr and the
-    plane; t (``s_ref`` = |σ_tr|) keeps the products in range for any size of σ_tr.
+    of its projection onto the plane). g is the sine of the angle between σ_tr and the plane.
     """
     rho = _unit_face(alpha, fab, prm, sc, rho)
-    bulk = prm[0]
-    shear = prm[1]
-    yf = sc.yfs[0]
-    ttr = sc.v[V_TTR]
-    t0 = ttr[0] / s_ref
-    t1 = ttr[1] / s_ref
-    t2 = ttr[2] / s_ref
-    ca = np.cos(2.0 * alpha)
-    a0 = -1.0 + rho * ca
-    a1 = -1.0 - rho * ca
-    a2 = rho * np.sin(2.0 * alpha)
-    b0 = (bulk + shear) * yf[YF_N] + (bulk - shear) * yf[YF_N + 1]
-    b1 = (bulk - shear) * yf[YF_N] + (bulk + shear) * yf[YF_N + 1]
-    b2 = shear * yf[YF_N + 2]
-    n0 = a1 * b2 - a2 * b1
-    n1 = a2 * b0 - a0 * b2
-    n2 = a0 * b1 - a1 * b0
-    nn = n0 * n0 + n1 * n1 + n2 * n2
+    t = _unit_trial(sc, s_ref)
+    a = _unit_stress(alpha, rho)
+    b = _flow_stress(sc.yfs[0], prm[0], prm[1])
+    n = _cross(a, b)
+    nn = _dot(n, n)
     if not nn > 0.0:
         return 0.0, 0.0, 0.0, rho
-    g = (t0 * n0 + t1 * n1 + t2 * n2) / np.sqrt(nn * (t0 * t0 + t1 * t1 + t2 * t2))
-    p = ((t1 * b2 - t2 * b1) * n0 + (t2 * b0 - t0 * b2) * n1 + (t0 * b1 - t1 * b0) * n2) / nn
-    dgam = ((a1 * t2 - a2 * t1) * n0 + (a2 * t0 - a0 * t2) * n1 + (a0 * t1 - a1 * t0) * n2) / nn
-    return g, p * s_ref, dgam * s_ref, rho
+    g = _dot(t, n) / np.sqrt(nn * _dot(t, t))
+    return (g, _dot(_cross(t, b), n) / nn * s_ref, _dot(_cross(a, t), n) / nn * s_ref, rho)
 
 
 @njit(**KERNEL)
 def _wedge_root(a, b, ga, gb, fab, prm, sc, rho, s_ref):
-    """(α, g, P, Δγ, ρ): a zero of :func:`_wedge`'s g in the bracket [a, b] (g(a) = ga and
-    g(b) = gb of opposite signs), by regula falsi with the Illinois modification (the value
-    at an end kept twice is halved: superlinear, and the bracket shrinks to a jump of g,
-    where the flow jumps across a ridge of f). Stops at |g| <= SCAN_ROOT_TOL or a bracket of
-    SCAN_ANGLE_TOL; the scratch holds the terms at the returned α."""
+    """(α, g, P, Δγ, ρ, a', b'): a zero of :func:`_wedge`'s g in the bracket [a, b] (g(a) = ga
+    and g(b) = gb of opposite signs), by regula falsi with the Illinois modification (the
+    value at an end kept twice is halved: superlinear, and the bracket [a', b'] shrinks to a
+    jump of g, where the flow jumps across a ridge of f). Stops at |g| <= SCAN_ROOT_TOL or a
+    bracket of SCAN_ANGLE_TOL; the scratch holds the terms at the returned α."""
     side = 0
     m = a
     g = ga
@@ -997,13 +1015,44 @@ def _wedge_root(a, b, ga, gb, fab, prm, sc, rho, s_ref):
             if side == 1:
                 ga *= 0.5
             side = 1
-    return m, g, p, dgam, rho
+    return m, g, p, dgam, rho, a, b
+
+
+@njit(**KERNEL)
+def _bracket_root(a, b, ga, gb, fab, prm, sc, rho, s_ref):
+    """(α, P, Δγ, ρ) of the scan's bracket [a, b] (g(a) = ga, g(b) = gb of opposite signs):
+    its root (:func:`_wedge_root`), or where g jumps (the bracket shrinks to [lo, hi] with
+    |g| > SCAN_ROOT_TOL) the return on the ridge there. The flow jumps across a ridge of f,
+    whose flows λ N_lo + (1 - λ) N_hi, 0 <= λ <= 1 (Koiter's rule, as
+    :func:`_ridge_residual`), fill the gap:
+
+        t = P σ̂ + μ_lo C N_lo + μ_hi C N_hi,   Δγ = μ_lo + μ_hi,   λ = μ_lo / Δγ,
+
+    a 3x3 system (Cramer, t = σ_tr/|σ_tr|, σ̂ continuous through the jump); μ_lo and μ_hi
+    have one sign, as g(lo) and g(hi) have opposite ones. The scratch holds the terms at the
+    returned α (hi on a ridge)."""
+    m, g, p, dgam, rho, lo, hi = _wedge_root(a, b, ga, gb, fab, prm, sc, rho, s_ref)
+    if abs(g) <= SCAN_ROOT_TOL:
+        return m, p, dgam, rho
+    t = _unit_trial(sc, s_ref)
+    rho = _unit_face(lo, fab, prm, sc, rho)
+    b_lo = _flow_stress(sc.yfs[0], prm[0], prm[1])
+    rho = _unit_face(hi, fab, prm, sc, rho)
+    b_hi = _flow_stress(sc.yfs[0], prm[0], prm[1])
+    s = _unit_stress(hi, rho)
+    w = _cross(b_lo, b_hi)
+    det = _dot(s, w)
+    if det == 0.0:
+        return hi, 0.0, 0.0, rho
+    dgam = (_dot(s, _cross(t, b_hi)) + _dot(s, _cross(b_lo, t))) / det
+    return hi, _dot(t, w) / det * s_ref, dgam * s_ref, rho
 
 
 @njit(**KERNEL)
 def _scan_face(a, b, ga, gb, m, p, dgam, rho, c_n, qn, z, prm, sc, s_ref):
     """The face solve from a root (α = ``m``, P = ``p`` > 0, Δγ = ``dgam`` > 0, ρ = ``rho``;
-    its terms in the scratch) of the scan's bracket [a, b] (g = ``ga``, ``gb`` at its ends)
+    its terms in the scratch; :func:`_bracket_root`) of the scan's bracket [a, b] (g = ``ga``,
+    ``gb`` at its ends)
     at the state ``z`` = (c, A, Bc, Bs) (:func:`_scan_return`): (face, fabric projected, on a
     ridge, at the apex).
 
@@ -1034,14 +1083,13 @@ def _scan_face(a, b, ga, gb, m, p, dgam, rho, c_n, qn, z, prm, sc, s_ref):
         gb, _, _, _ = _wedge(b, fab, prm, sc, rho, s_ref)
         if (ga > 0.0) == (gb > 0.0):
             break        # the root left its bracket: the last one stands
-        m, g, p, dgam, rho = _wedge_root(a, b, ga, gb, fab, prm, sc, rho, s_ref)
+        m, p, dgam, rho = _bracket_root(a, b, ga, gb, fab, prm, sc, rho, s_ref)
         theta_root = (theta[0], theta[1])
         if not (dgam > 0.0 and p > 0.0):
-            return False, False, False, dgam > 0.0 and abs(g) <= SCAN_ROOT_TOL
-    ca = np.cos(2.0 * m)
-    x[0] = p * (-1.0 + rho * ca)
-    x[1] = p * (-1.0 - rho * ca)
-    x[2] = p * rho * np.sin(2.0 * m)
+            return False, False, False, dgam > 0.0
+    s = _unit_stress(m, rho)
+    for i in range(3):
+        x[i] = p * s[i]
     x[3] = dgam
     for i in range(4):
         x[4 + i] = z[i]
@@ -1076,7 +1124,9 @@ def _scan_return(c_n, qn, c_apex, prm, sc, s_ref):
     σ_tr = P σ̂(α) + Δγ C N(α) are linear in (P, Δγ) and leave one scalar equation in α,
     g(α) = 0 (:func:`_wedge`), well posed at any P, P = 0 included. g is sampled at
     SCAN_POINTS directions over [0, π) (α = π is α = 0) at the apex's state
-    (c_apex, Φ(q_n, C⁻¹σ_tr, c_apex)) and each sign change refined (:func:`_wedge_root`).
+    (c_apex, Φ(q_n, C⁻¹σ_tr, c_apex)) and each sign change refined to a root, or where g
+    jumps (the flow jumps across a ridge of f) to the return with the ridge's flows
+    (:func:`_bracket_root`).
     A root with Δγ > 0 and P > 0 is refined at the state of its own step and starts the
     face solve (:func:`_scan_face`); roots with Δγ <= 0 (flows running backwards) are not
     returns.
@@ -1124,7 +1174,7 @@ def _scan_return(c_n, qn, c_apex, prm, sc, s_ref):
         if (ga > 0.0) != (gb > 0.0):
             # A bracket: its root at the apex's state decides for the apex; a face root
             # starts the face solve.
-            m, g, p, dgam, rho = _wedge_root(a, b, ga, gb, fab0, prm, sc, rho_grid, s_ref)
+            m, p, dgam, rho = _bracket_root(a, b, ga, gb, fab0, prm, sc, rho_grid, s_ref)
             if dgam > 0.0 and p > 0.0:
                 face, projected, ridge, past = _scan_face(a, b, ga, gb, m, p, dgam, rho, c_n,
                                                           qn, apex_state, prm, sc, s_ref)
@@ -1132,7 +1182,7 @@ def _scan_return(c_n, qn, c_apex, prm, sc, s_ref):
                     return True, projected, ridge, False
                 beyond = beyond or past
                 unresolved = unresolved or not past
-            elif dgam > 0.0 and abs(g) <= SCAN_ROOT_TOL:
+            elif dgam > 0.0:
                 beyond = True
         ga = gb
     return False, False, False, beyond and not unresolved
