@@ -310,18 +310,14 @@ def _update_cutting(prm, stress, state, de, dw, depth=0):
     return s, q, status, cuts
 
 
+P_WALK_MAX = 10.0
+"""The random walk's largest P (p_ref): 1 % of K (model_params: K = 1000 p_ref)."""
+
+
 @settings(max_examples=5, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), scale=st.floats(-4.0, -2.5),
        law=st.sampled_from(["balance", "balance mean-field", "relaxation"]))
-@example(seed=7517, scale=-2.5, law="relaxation").xfail(
-    raises=AssertionError,
-    reason="known failure (issue 3, found by hypothesis 2026-12-02), not a ridge of f: the "
-           "walk's compressive bias takes P to ~3 K (K = 1000 p_ref), where the fabric's "
-           "softening matches the regularization's stiffness and the strain-driven response "
-           "reaches limit points. At step 888 one point's increment crosses one at 0.733 of "
-           "its length (P = 3071 p_ref; the cutting used to drop the failed half), and step "
-           "949's ends 0.3 % short of one (LIMIT_POINT_STEP below): the update rightly "
-           "returns -1 there, and halving cannot pass a limit point")
+@example(seed=7517, scale=-2.5, law="relaxation")
 def test_fabric_admissible_on_every_step_of_1e5_random_increments(seed, scale, law):
     # Acceptance 4: 100 points x 1000 steps of random strain increments and spins.
     coeffs = {"balance": {}, "balance mean-field": dict(kappa_a=1.0, k_c=1.0, k_o=1.0),
@@ -343,6 +339,14 @@ def test_fabric_admissible_on_every_step_of_1e5_random_increments(seed, scale, l
         counts += np.bincount(status + 1, minlength=5)
         # keep c in a physical range between steps (a random walk would leave (0, 1))
         state[:, 1] = np.clip(state[:, 1], 0.7, 0.9)
+        # and P in the regularization's: E_reg = λ p_ref is stiff against the stress only
+        # for P << K. The walk's compressive bias took P to ~3 K (seed 7517, scale -2.5),
+        # where the fabric's softening matches that stiffness and the regularized response
+        # has limit points (LIMIT_POINT_STEP: the update rightly fails there). The cone is
+        # homogeneous of degree 1, so σ scaled down stays on its surface.
+        p = -0.5 * (stress[:, 0] + stress[:, 1])
+        high = p > P_WALK_MAX
+        stress[high] *= (P_WALK_MAX / p[high])[:, None]
     print(f"\n{law}, seed {seed}, scale {scale:.3g}: {n * steps} increments, statuses "
           f"elastic/face/apex/projected {counts[1:].tolist()}, failed-and-cut {cuts}, "
           f"min admissibility margin {margin:.3g}")
