@@ -12,7 +12,9 @@ Yield f and flow N: :mod:`contfab.models.slip_planes`; fabric laws:
 2. Elastic predictor σ_tr = σ_n + C Δε (C: the isotropic regularization K, G).
 3. f(σ_tr; q_n, c_n) <= 1e-10·|σ_tr|: elastic (status 0), tangent C. (The tolerance keeps a
    state left on the surface by the previous step — to the local solve's 1e-12 — elastic
-   under a pure rotation, which is then exact.)
+   under a pure rotation, which is then exact.) Where |f_tr| is far from the tolerance the
+   planes' predicted maxima decide it, and a plastic point keeps their terms for step 4's
+   start (:func:`_trial_yield`); otherwise the exact plane search does.
 4. Otherwise backward Euler on the face, fully implicit: unknowns x = (σ, Δγ, c, A, Bc, Bs),
 
        σ - σ_tr + Δγ C N(σ, c, q) = 0,         f(σ, c, q) = 0,
