@@ -34,6 +34,27 @@ def _update(params, stress, state, de, dw=0.0):
     return s[0], q[0], t[0], int(status[0])
 
 
+def _substeps(params, stress, state, de, n):
+    """The increment ``de`` from (stress, state) in n equal updates (none may fail)."""
+    s, q = stress, state
+    for _ in range(n):
+        s, q, _, status = _update(params, s, q, de / n)
+        assert status >= 0
+    return s, q
+
+
+def _central_tangent(params, stress, state, de):
+    """∂σ/∂Δε of one update by central differences (step 1e-7 of the largest |Δε|)."""
+    h = 1e-7 * np.abs(de).max()
+    fd = np.empty((3, 3))
+    for j in range(3):
+        e = np.zeros(3)
+        e[j] = h
+        fd[:, j] = (_update(params, stress, state, de + e)[0]
+                    - _update(params, stress, state, de - e)[0]) / (2 * h)
+    return fd
+
+
 def _on_surface(prm, alpha, state):
     """The stress with P = 1 and principal direction alpha on the yield surface of ``state``."""
     lo, hi = 0.0, 1.0
@@ -414,18 +435,14 @@ def _update_cutting(prm, stress, state, de, dw, depth=0):
     return s, q, status, cuts
 
 
+P_WALK_MAX = 10.0
+"""The random walk's largest P (p_ref): 1 % of K (model_params: K = 1000 p_ref)."""
+
+
 @settings(max_examples=5, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), scale=st.floats(-4.0, -2.5),
        law=st.sampled_from(["balance", "balance mean-field", "relaxation"]))
-@example(seed=7517, scale=-2.5, law="relaxation").xfail(
-    raises=AssertionError,
-    reason="known failure (issue 3, found by hypothesis 2026-12-02), not a ridge of f: the "
-           "walk's compressive bias takes P to ~3 K (K = 1000 p_ref), where the fabric's "
-           "softening matches the regularization's stiffness and the strain-driven response "
-           "reaches limit points. At step 888 one point's increment crosses one at 0.733 of "
-           "its length (P = 3071 p_ref; the cutting used to drop the failed half), and step "
-           "949's ends 0.3 % short of one (LIMIT_POINT_STEP below): the update rightly "
-           "returns -1 there, and halving cannot pass a limit point")
+@example(seed=7517, scale=-2.5, law="relaxation")
 def test_fabric_admissible_on_every_step_of_1e5_random_increments(seed, scale, law):
     # Acceptance 4: 100 points x 1000 steps of random strain increments and spins.
     coeffs = {"balance": {}, "balance mean-field": dict(kappa_a=1.0, k_c=1.0, k_o=1.0),
@@ -447,6 +464,14 @@ def test_fabric_admissible_on_every_step_of_1e5_random_increments(seed, scale, l
         counts += np.bincount(status + 1, minlength=5)
         # keep c in a physical range between steps (a random walk would leave (0, 1))
         state[:, 1] = np.clip(state[:, 1], 0.7, 0.9)
+        # and P in the regularization's: E_reg = λ p_ref is stiff against the stress only
+        # for P << K. The walk's compressive bias took P to ~3 K (seed 7517, scale -2.5),
+        # where the fabric's softening matches that stiffness and the regularized response
+        # has limit points (LIMIT_POINT_STEP: the update rightly fails there). The cone is
+        # homogeneous of degree 1, so σ scaled down stays on its surface.
+        p = -0.5 * (stress[:, 0] + stress[:, 1])
+        high = p > P_WALK_MAX
+        stress[high] *= (P_WALK_MAX / p[high])[:, None]
     print(f"\n{law}, seed {seed}, scale {scale:.3g}: {n * steps} increments, statuses "
           f"elastic/face/apex/projected {counts[1:].tolist()}, failed-and-cut {cuts}, "
           f"min admissibility margin {margin:.3g}")
@@ -663,28 +688,15 @@ def test_loose_anisotropic_increments_return_onto_their_own_surface(case):
     assert abs(_own_yield(CALIBRATED, s1, q1)) <= 1e-10 * np.abs(s1).max()
     assert admissibility_margin(q1[2], np.hypot(q1[3], q1[4])) >= 0.0
 
-    def substeps(n):
-        s, q = stress, state
-        for _ in range(n):
-            s, q, _, st_ = _update(CALIBRATED, s, q, de / n)
-            assert st_ >= 0
-        return s, q
-
     # Backward Euler is first order: toward 256 steps of the same increment, halving the step
     # halves the difference (measured 0.50 and 0.56).
-    s_ref, q_ref = substeps(256)
-    s2, q2 = substeps(2)
+    s_ref, q_ref = _substeps(CALIBRATED, stress, state, de, 256)
+    s2, q2 = _substeps(CALIBRATED, stress, state, de, 2)
     e1, e2 = np.abs(s1 - s_ref).max(), np.abs(s2 - s_ref).max()
     assert e1 <= 2e-5 and e2 <= 0.65 * e1
     assert np.abs(q1 - q_ref).max() <= 1e-6
     # The consistent tangent (the ridge return's own Jacobian on the ridge).
-    h = 1e-7 * np.abs(de).max()
-    fd = np.empty((3, 3))
-    for j in range(3):
-        e = np.zeros(3)
-        e[j] = h
-        fd[:, j] = (_update(CALIBRATED, stress, state, de + e)[0]
-                    - _update(CALIBRATED, stress, state, de - e)[0]) / (2 * h)
+    fd = _central_tangent(CALIBRATED, stress, state, de)
     assert np.abs(t1 - fd).max() <= 1e-5 * np.abs(fd).max()
 
 
@@ -739,27 +751,15 @@ def test_ridge_between_two_corners_of_the_clamp_next_to_the_arc_ends():
     tops = [sp._refine_on_arc(1.0, u[j], u[j - 1], u[j + 1], True, 60, *terms)[1] for j in peaks]
     assert tops[0] == pytest.approx(tops[1], abs=1e-12 * np.abs(s1).max())
 
-    def substeps(n):
-        s, q = stress, state
-        for _ in range(n):
-            s, q, _, st_ = _update(CALIBRATED, s, q, de / n)
-            assert st_ >= 0
-        return s, q
-
     # First order toward 256 steps of the same increment (measured: 1.2e-3 for one step,
     # 0.32 of it for two, 0.12 for eight).
-    s_ref, q_ref = substeps(256)
-    e1, e2, e8 = (np.abs(substeps(n)[0] - s_ref).max() for n in (1, 2, 8))
+    s_ref, q_ref = _substeps(CALIBRATED, stress, state, de, 256)
+    e1, e2, e8 = (np.abs(_substeps(CALIBRATED, stress, state, de, n)[0] - s_ref).max()
+                  for n in (1, 2, 8))
     assert e1 <= 2e-3 and e2 <= 0.65 * e1 and e8 <= 0.25 * e1
     assert np.abs(q1 - q_ref).max() <= 1e-5
     # The consistent tangent (the ridge return's own Jacobian).
-    hh = 1e-7 * np.abs(de).max()
-    fd = np.empty((3, 3))
-    for j in range(3):
-        e = np.zeros(3)
-        e[j] = hh
-        fd[:, j] = (_update(CALIBRATED, stress, state, de + e)[0]
-                    - _update(CALIBRATED, stress, state, de - e)[0]) / (2 * hh)
+    fd = _central_tangent(CALIBRATED, stress, state, de)
     assert np.abs(t1 - fd).max() <= 1e-5 * np.abs(fd).max()
 
 

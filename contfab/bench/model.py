@@ -6,39 +6,56 @@ increment of 1e-4 with a small random spin, so every point takes the plastic bra
 (the benchmark reports the plastic fraction). All cases use the shipped (calibrated)
 parameters. Tier 2 is measured twice: from the ``[initial]`` isotropic fabric, and as
 ``tier2_aniso`` from an anisotropic one (B/A = :data:`B_RATIO` along the compression axis of
-each point's random shear direction), where the
-plane search and the fabric coupling do their full work. The kernel runs on one thread with preallocated outputs; the reference is
-a plain numpy elastic update σ + C Δε of the same points in the same run, and each case's
+each point's random shear direction), where the plane search and the fabric coupling do
+their full work. The kernel runs on one thread with preallocated outputs; the reference is a
+plain numpy elastic update σ + C Δε of the same points in the same run, and each case's
 rate is also given as a ratio to it. Timings are medians of ``--repeats`` runs of the
 process's CPU time (both sides are single-threaded, so this is the per-core figure even
 when other jobs share the cores; ``*_wall`` figures give the wall-clock rate too).
 
-Measured (updates/s per core, ``python -m contfab.cli bench model --json`` with nice -n 5
-on the shared 2-core machine, load ~3, 3 runs interleaved with main's code in the same
-session, 2026-12-02; main = e10f799, branch = model at 5d04814; medians in brackets):
+Measured (updates/s per core, ``python -m contfab.cli bench model --json``, 5 runs in a row on
+the shared 2-core machine, 2026-12-02, load 0.3 rising to 1.3 from another job; medians in
+brackets):
 
-* tier0: main 1.65e7, 1.64e7, 1.60e7 (1.64e7); branch 1.90e7, 1.45e7, 1.69e7 (1.69e7)
-  (tier 0 code unchanged: load noise)
-* tier2: main 2.16e5, 2.02e5, 2.13e5 (2.13e5); branch 3.20e5, 2.78e5, 2.83e5 (2.83e5)
-* tier2_aniso: main 1.86e5, 1.85e5, 2.19e5 (1.86e5); branch 2.97e5, 2.88e5, 3.01e5 (2.97e5)
+* tier0: 2.42e7, 2.31e7, 2.23e7, 2.48e7, 2.37e7 (2.37e7; 0.36 of the numpy elastic update)
+* tier1: 8.08e6, 8.45e6, 7.68e6, 8.72e6, 8.41e6 (8.41e6; 0.12)
+* tier2: 5.72e5, 5.68e5, 5.46e5, 5.76e5, 5.70e5 (5.70e5; 0.0081)
+* tier2_aniso: 5.35e5, 5.30e5, 4.97e5, 5.51e5, 5.54e5 (5.35e5; 0.0080)
 
-(The kernel alone on the same 100 000 points, minimum CPU time of 9 calls, interleaved with
-main at lower load: main 4.2-4.4 µs, branch 2.7-2.8 µs per update, both cases, i.e.
-3.6e5/s.)
+Issue 3's targets (5e6 for tiers 0/1, 5e5 for tier 2) are met, tier 2 by 7-14 %: a load of
+2-3 on the other core costs ~30 % of the per-core rate here (2.83e5 at stop 13 against 4.1e5
+idle for the same code), so a single figure under load can fall below. At stop 13 (code
+116a88d) the same command gave 4.09e5 and 4.06e5 on the idle machine.
 
-Where a tier-2 update's ~3.3 µs went at 10a6702, before the residuals and yield/flow were
-inlined (numba, one component at a time over the bench's points; noisy to ±20 %; inlining
-then removed ~0.5 µs of argument passing spread over them): trial and rotation 0.06; the
-elastic check 0.45 (the plane search at σ_tr: about 3 evaluations of h per arc from u*,
-none for the final values); three yield/flow
-evaluations (the start's, two of Newton: 2.0 / 2.01 per update) 0.38-0.47 each, of which
-plane_terms ~0.15 per plane; five fabric steps 0.07 each; two 8x8 LU 0.09 each; five
-solves 0.045 each (three for the tangent); the rest (the residuals' assembly, the start's
-arithmetic and its one plane step per arc, the planes' check, the state) ~0.8. In the
-profile (perf, tier2_aniso) libm takes 19 % (sincos 7, tan 5, atan2 2.6, exp/expm1 2.6,
-hypot 0.8). The 5e5 target of issue 3 is not reached: the yield/flow evaluations, the
-LU/solves, the fabric steps and the plane search alone sum to ~2 µs, so reaching 2 µs
-needs fewer yield/flow evaluations per update (or a cheaper one), not more trimming.
+What took a tier-2 update from 2.44 to ~1.8 µs (kernel alone on 100 000 of these points,
+minimum CPU time of several calls, each change measured against its parent interleaved):
+
+* FMA contraction (:mod:`contfab.jit_flags`): 2.44 -> 2.15 µs with five fast-math flags,
+  within noise of that with ``contract`` alone;
+* the elastic check from the planes' predicted maxima, whose terms then start the plastic
+  branch (``fabric_model._trial_yield``): one plane step per arc at σ_tr instead of three,
+  -0.07..0.11 µs;
+* planes placed without the principal axis's angle (``slip_planes.arc_point``: no atan2 per
+  evaluation): -0.12 µs;
+* 1 - exp(-x) without glibc's expm1 (``fabric_law.one_minus_exp``): -0.05 µs;
+* the balance law's scratch in two arrays (numba passes each array argument as ~10 fields,
+  at every non-inlined call): -0.04 µs;
+* the plane's p-derivatives formed once per basis function, the slip angle's partials with
+  one reciprocal: yield_and_flow 233 -> 212 ns, three per update;
+* the tangent's three columns in one substitution: -0.015 µs.
+
+Where an update's ~1.8 µs goes now (bench points; perf with a map of numba's symbols, and
+knock-out timings of ``yield_and_flow`` alone): three evaluations of yield_and_flow, 0.21 µs
+each (two in the local Newton, one at σ_tr); the Newton's two 8x8 LU and five solves
+~0.2 µs; five fabric steps ~0.15 µs; the cutting-plane start's own work (one plane step per
+arc, two fabric steps, the flow at its end to first order) ~0.25 µs; the trial's plane step
+~0.1 µs; libm (sincos, tan, exp) ~25 % across all of these. Tried and refused, measured:
+``arcp`` and the other fast-math flags (NaN at a subnormal R, no gain over ``contract``);
+inlining ``_point`` and ``_trial_yield`` into the loop (2.2 µs: slower); the last Newton step
+taken from a residual of 1e-7 instead of 1e-8 (one evaluation fewer on 17 % of the
+anisotropic points, but the tangent then moves by 9e-8 relative, past the 1e-8 of the
+tier-1 reduction test); a looser plane-search stop (PLANE_LAST_STEP 1e-4: planes 1e-8 off
+their maxima broke the Euler relations of the flow's derivatives at 4e-12).
 """
 from __future__ import annotations
 

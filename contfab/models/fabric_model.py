@@ -12,7 +12,9 @@ Yield f and flow N: :mod:`contfab.models.slip_planes`; fabric laws:
 2. Elastic predictor σ_tr = σ_n + C Δε (C: the isotropic regularization K, G).
 3. f(σ_tr; q_n, c_n) <= 1e-10·|σ_tr|: elastic (status 0), tangent C. (The tolerance keeps a
    state left on the surface by the previous step — to the local solve's 1e-12 — elastic
-   under a pure rotation, which is then exact.)
+   under a pure rotation, which is then exact.) Where |f_tr| is far from the tolerance the
+   planes' predicted maxima decide it, and a plastic point keeps their terms for step 4's
+   start (:func:`_trial_yield`); otherwise the exact plane search does.
 4. Otherwise backward Euler on the face, fully implicit: unknowns x = (σ, Δγ, c, A, Bc, Bs),
 
        σ - σ_tr + Δγ C N(σ, c, q) = 0,         f(σ, c, q) = 0,
@@ -213,36 +215,43 @@ def _lu(a, piv, n):
 
 
 @njit(**KERNEL, inline="always")
-def _lu_solve(lu, piv, b, n):
-    """Solve A x = b in place with the factors of :func:`_lu` (leading n x n block): b ← P b,
-    then L y = b forward and U x = y backward, each row's sum in a local (inlined like
-    :func:`_lu`, with a constant n)."""
+def _lu_solve(lu, piv, b, n, m):
+    """Solve A x = b in place for the m right-hand sides in the rows of ``b`` (m x n), with
+    the factors of :func:`_lu` (leading n x n block): b ← P b, then L y = b forward and
+    U x = y backward, each row's sums in locals. Inlined like :func:`_lu`, with constant n
+    and m, so the loops unroll and the m substitutions interleave (the tangent's three
+    columns: latency shared, measured)."""
     for k in range(n):
         p = piv[k]
         if p != k:
-            tmp = b[k]
-            b[k] = b[p]
-            b[p] = tmp
+            for c in range(m):
+                tmp = b[c, k]
+                b[c, k] = b[c, p]
+                b[c, p] = tmp
     for i in range(n):
-        s = b[i]
-        for j in range(i):
-            s -= lu[i, j] * b[j]
-        b[i] = s
+        for c in range(m):
+            s = b[c, i]
+            for j in range(i):
+                s -= lu[i, j] * b[c, j]
+            b[c, i] = s
     for i in range(n - 1, -1, -1):
-        s = b[i]
-        for j in range(i + 1, n):
-            s -= lu[i, j] * b[j]
-        b[i] = s / lu[i, i]
+        inv = 1.0 / lu[i, i]
+        for c in range(m):
+            s = b[c, i]
+            for j in range(i + 1, n):
+                s -= lu[i, j] * b[c, j]
+            b[c, i] = s * inv
 
 
 # --------------------------------------------------------------------------- the local solve
 
-Scratch = namedtuple("Scratch", "v planes yfs jac jacr piv dpz dq ws")
+Scratch = namedtuple("Scratch", "v planes yfs jac jacr piv rhs dpz dq ws")
 """Per-range work arrays of the local solve (allocated once per range, never per point), few
 so that passing them costs little: ``v`` the vectors (rows V_*, 9 long), ``planes`` the plane
 terms (rows 0-1: the planes of the solve, 2-3: the ridge return's second configuration),
 ``yfs`` the yield/flow terms (rows: the solve's, the ridge's two configurations), ``jac``,
-``jacr`` the Jacobians (8x8, the ridge return's 9x9), ``piv`` their pivots (rows), ``dpz`` ∂p/∂z,
+``jacr`` the Jacobians (8x8, the ridge return's 9x9), ``piv`` their pivots (rows), ``rhs`` the
+tangent's three right-hand sides, ``dpz`` ∂p/∂z,
 ``dq`` and ``ws`` the fabric law's."""
 V_TTR, V_X, V_THETA, V_RES, V_DX, V_XT, V_X0, V_DTH, V_FQ, V_THB, V_XR, V_XRT, V_DXR, V_RESR = (
     range(14))
@@ -252,7 +261,8 @@ V_TTR, V_X, V_THETA, V_RES, V_DX, V_XT, V_X0, V_DTH, V_FQ, V_THB, V_XR, V_XRT, V
 def _scratch():
     return Scratch(np.zeros((14, N_XR)), np.empty((4, N_PL)), np.empty((3, N_YF)),
                    np.empty((N_X, N_X)), np.empty((N_XR, N_XR)),
-                   np.empty((2, N_XR), dtype=np.int64), np.empty((N_P, 4)), np.empty((4, 3)),
+                   np.empty((2, N_XR), dtype=np.int64), np.empty((3, N_XR)), np.empty((N_P, 4)),
+                   np.empty((4, 3)),
                    balance_work())
 
 
@@ -625,7 +635,7 @@ def _ridge_newton(k, c_n, qn, prm, sc, s_ref):
                     projected)
         for i in range(N_XR):
             dx[i] = -res[i]
-        _lu_solve(sc.jacr, piv, dx, N_XR)
+        _lu_solve(sc.jacr, piv, sc.v[V_DXR:V_DXR + 1], N_XR, 1)
         d0 = _plane_step(pa, 0, dx, sc.dpz)
         d1 = _plane_step(pa, 1, dx, sc.dpz)
         db = _plane_step(pb, k, dx, sc.dpz)
@@ -811,7 +821,7 @@ def _newton(c_n, qn, prm, sc, s_ref):
             return x[3] >= 0.0 and p > 0.0, projected
         for i in range(N_X):
             dx[i] = -res[i]
-        _lu_solve(sc.jac, piv, dx, N_X)
+        _lu_solve(sc.jac, piv, sc.v[V_DX:V_DX + 1], N_X, 1)
         if (err <= NEWTON_TOL_LAST and err <= 1e-2 * err_prev
                 and max(abs(pl[0, PL_DT]), abs(pl[1, PL_DT])) <= 1e-5):
             # Quadratic convergence (the last step cut the residual 100-fold): this step
@@ -1238,20 +1248,21 @@ def _elastic_strain(sxx, syy, sxy, bulk, shear):
 
 
 @njit(**KERNEL, inline="always")
-def _tangent(lu, piv, dx, n, bulk, shear, s_ref, tangent, i):
+def _tangent(lu, piv, rhs, n, bulk, shear, s_ref, tangent, i):
     """tangent[i] ← ∂σ/∂Δε, the σ-rows of J⁻¹ [C/s_ref; 0] (J: the LU factors ``lu``, ``piv``
-    of the converged n x n Jacobian; ``dx`` scratch), column by column."""
+    of the converged n x n Jacobian; ``rhs`` (3, >= n) scratch), the three columns at once."""
     for j in range(3):
         for k in range(n):
-            dx[k] = 0.0
-        if j < 2:
-            dx[0] = (bulk + shear if j == 0 else bulk - shear) / s_ref
-            dx[1] = (bulk - shear if j == 0 else bulk + shear) / s_ref
-        else:
-            dx[2] = shear / s_ref
-        _lu_solve(lu, piv, dx, n)
+            rhs[j, k] = 0.0
+    rhs[0, 0] = (bulk + shear) / s_ref
+    rhs[0, 1] = (bulk - shear) / s_ref
+    rhs[1, 0] = (bulk - shear) / s_ref
+    rhs[1, 1] = (bulk + shear) / s_ref
+    rhs[2, 2] = shear / s_ref
+    _lu_solve(lu, piv, rhs, n, 3)
+    for j in range(3):
         for k in range(3):
-            tangent[i, k, j] = dx[k]
+            tangent[i, k, j] = rhs[j, k]
 
 
 @njit(**KERNEL)
@@ -1352,9 +1363,9 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
                                 sc.ws)
         # Tangent: solve J X = [C/s_ref; 0], column by column (J of the ridge return there).
         if ridge:
-            _tangent(sc.jacr, sc.piv[1], sc.v[V_DXR], N_XR, bulk, shear, s_ref, tangent, i)
+            _tangent(sc.jacr, sc.piv[1], sc.rhs, N_XR, bulk, shear, s_ref, tangent, i)
         else:
-            _tangent(sc.jac, sc.piv[0], sc.v[V_DX], N_X, bulk, shear, s_ref, tangent, i)
+            _tangent(sc.jac, sc.piv[0], sc.rhs, N_X, bulk, shear, s_ref, tangent, i)
         status[i] = STATUS_FACE
     elif apex:
         stress[i, :] = 0.0

@@ -356,24 +356,24 @@ def _refine_on_arc(g, u, lo, hi, kinks, maxit, m, r, ca, sa, phi0, pc, ps, phi_l
 
 
 @njit(**KERNEL)
-def _slip_angle(sq, sp, cp):
-    """(sin ψ̂, cos ψ̂, ρ) from (sin ψ, sin φ, cos φ) (module doc): ψ̂ = atan2(num, den),
-    num = sin ψ cos φ, den = 1 - sin ψ sin φ, ρ = hypot(num, den)."""
+def _slip_angle(sq, cq, sp, cp):
+    """(sin ψ̂, cos ψ̂) and their ψ- and φ-partials from (sin ψ, cos ψ, sin φ, cos φ) (module
+    doc): ψ̂ = atan2(num, den), num = sin ψ cos φ, den = 1 - sin ψ sin φ, ρ = hypot(num, den);
+    along any (d num, d den), d(sin ψ̂) = (d num - sin ψ̂ dρ)/ρ, d(cos ψ̂) = (d den - cos ψ̂ dρ)/ρ,
+    dρ = sin ψ̂ d num + cos ψ̂ d den. Returns (sh, ch, sh_ψ, ch_ψ, sh_φ, ch_φ)."""
     num = sq * cp
     den = 1.0 - sq * sp
-    rho = hypot(num, den)
-    return num / rho, den / rho, rho
-
-
-@njit(**KERNEL)
-def _slip_angle_derivative(sq, cq, sp, cp, sh, ch, rho, dpsi, dphi):
-    """The derivatives of (sin ψ̂, cos ψ̂) along (dψ, dφ), from :func:`_slip_angle`'s values."""
-    num = sq * cp
-    den = 1.0 - sq * sp
-    d_num = cq * cp * dpsi - sq * sp * dphi
-    d_den = -(cq * sp * dpsi + sq * cp * dphi)
-    d_rho = (num * d_num + den * d_den) / rho
-    return (d_num - sh * d_rho) / rho, (d_den - ch * d_rho) / rho
+    inv = 1.0 / hypot(num, den)
+    sh = num * inv
+    ch = den * inv
+    n_q = cq * cp          # ∂(num, den)/∂ψ
+    d_q = -cq * sp
+    n_f = -sq * sp         # ∂(num, den)/∂φ
+    d_f = -sq * cp
+    r_q = sh * n_q + ch * d_q
+    r_f = sh * n_f + ch * d_f
+    return (sh, ch, (n_q - sh * r_q) * inv, (d_q - ch * r_q) * inv, (n_f - sh * r_f) * inv,
+            (d_f - ch * r_f) * inv)
 
 
 @njit(**KERNEL)
@@ -521,11 +521,9 @@ def plane_terms(cu, su, c2, s2, g, m, r, ca, sa, fab, pl, k):
         clamp = -1.0
     sq = np.sin(psi)
     cq = np.cos(psi)
-    sh, ch, rho_h = _slip_angle(sq, sp, cp)
     # (sin ψ̂, cos ψ̂) are functions of (ψ, φ): their derivatives along any direction
     # (dψ, dφ) combine the two partials.
-    sh_q, ch_q = _slip_angle_derivative(sq, cq, sp, cp, sh, ch, rho_h, 1.0, 0.0)
-    sh_f, ch_f = _slip_angle_derivative(sq, cq, sp, cp, sh, ch, rho_h, 0.0, 1.0)
+    sh, ch, sh_q, ch_q, sh_f, ch_f = _slip_angle(sq, cq, sp, cp)
     sh_t = sh_q * q_t + sh_f * p_t
     ch_t = ch_q * q_t + ch_f * p_t
     # N_θ: ∂(∂τ/∂σ)/∂θ = (-c2, c2, -2 s2), ∂(∂σn/∂σ)/∂θ = (-s2, s2, 2 c2).
@@ -540,32 +538,43 @@ def plane_terms(cu, su, c2, s2, g, m, r, ca, sa, fab, pl, k):
     pl[k, PL_NT + 2] = nt2
     pl[k, PL_SH] = sh + sh_t * dt
     pl[k, PL_SHT] = sh_t
-    # Derivatives in p at fixed θ: φ = φ0 + pc c2 + ps s2 (if not clamped), ψ likewise.
-    for j in range(N_P):
-        b = 1.0 if j % 3 == 0 else (c2 if j % 3 == 1 else s2)
-        b_t = 0.0 if j % 3 == 0 else (-2.0 * s2 if j % 3 == 1 else 2.0 * c2)
-        if j < 3:
-            dphi = b if phi_free else 0.0
-            dphi_t = b_t if phi_free else 0.0
-            dpsi = clamp * dphi
-            t_p = sec2 * dphi
-            ht_p = (2.0 * t * sec2 * dphi * p_t + sec2 * dphi_t) * sn + 2.0 * t_p * tau
-            if corner:
-                tp = -b / kink_t
-                pl[k, PL_HP + j] = t_p * sn + ht_p * dt + h_t * tp
-                pl[k, PL_TP + j] = tp
-            else:
-                pl[k, PL_HP + j] = t_p * sn + ht_p * dt
-                pl[k, PL_TP + j] = inv * ht_p
+    # Derivatives in p at fixed θ: φ = φ0 + pc c2 + ps s2 (if not clamped), ψ likewise, linear
+    # in the basis b = (1, c2, s2) of either's coefficients (b_θ = (0, -2 s2, 2 c2)). Per unit
+    # dφ (0 where φ is clamped) ψ̂ moves with φ and, where ψ is clamped to ±φ, with ψ = ±φ; per
+    # unit dψ only where ψ is free.
+    free = 1.0 if phi_free else 0.0
+    sh_pf = free * (sh_f + clamp * sh_q)
+    ch_pf = free * (ch_f + clamp * ch_q)
+    sh_pq = sh_q if clamp == 0.0 else 0.0
+    ch_pq = ch_q if clamp == 0.0 else 0.0
+    nf0 = g * ch_pf * ta_s0 + sh_pf * sn_s0
+    nf1 = g * ch_pf * ta_s1 + sh_pf * sn_s1
+    nf2 = g * ch_pf * ta_s2 + sh_pf * sn_s2
+    nq0 = g * ch_pq * ta_s0 + sh_pq * sn_s0
+    nq1 = g * ch_pq * ta_s1 + sh_pq * sn_s1
+    nq2 = g * ch_pq * ta_s2 + sh_pq * sn_s2
+    # h_θ per unit dφ: (2 tan φ sec²φ φ_θ σn + 2 sec²φ τ) b + sec²φ σn b_θ.
+    ht_b = free * 2.0 * sec2 * (t * p_t * sn + tau)
+    ht_bt = free * sec2 * sn
+    for j in range(3):
+        b = 1.0 if j == 0 else (c2 if j == 1 else s2)
+        b_t = 0.0 if j == 0 else (-2.0 * s2 if j == 1 else 2.0 * c2)
+        ht_p = ht_b * b + ht_bt * b_t
+        if corner:
+            tp = -b / kink_t
+            pl[k, PL_HP + j] = free * sec2 * b * sn + ht_p * dt + h_t * tp
+            pl[k, PL_TP + j] = tp
         else:
-            dphi = 0.0
-            dpsi = b if clamp == 0.0 else 0.0
-        sh_p = sh_q * dpsi + sh_f * dphi
-        ch_p = ch_q * dpsi + ch_f * dphi
-        pl[k, PL_NP + j] = g * ch_p * ta_s0 + sh_p * sn_s0
-        pl[k, PL_NP + N_P + j] = g * ch_p * ta_s1 + sh_p * sn_s1
-        pl[k, PL_NP + 2 * N_P + j] = g * ch_p * ta_s2 + sh_p * sn_s2
-        pl[k, PL_SHP + j] = sh_p
+            pl[k, PL_HP + j] = free * sec2 * b * sn + ht_p * dt
+            pl[k, PL_TP + j] = inv * ht_p
+        pl[k, PL_NP + j] = nf0 * b
+        pl[k, PL_NP + N_P + j] = nf1 * b
+        pl[k, PL_NP + 2 * N_P + j] = nf2 * b
+        pl[k, PL_NP + 3 + j] = nq0 * b
+        pl[k, PL_NP + N_P + 3 + j] = nq1 * b
+        pl[k, PL_NP + 2 * N_P + 3 + j] = nq2 * b
+        pl[k, PL_SHP + j] = sh_pf * b
+        pl[k, PL_SHP + 3 + j] = sh_pq * b
 
 
 @njit(**KERNEL)
