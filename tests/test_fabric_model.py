@@ -43,15 +43,16 @@ def _substeps(params, stress, state, de, n):
     return s, q
 
 
-def _central_tangent(params, stress, state, de):
-    """∂σ/∂Δε of one update by central differences (step 1e-7 of the largest |Δε|)."""
+def _central_tangent(params, stress, state, de, dw=0.0):
+    """∂σ/∂Δε of one update (spin ``dw``) by central differences (step 1e-7 of the largest
+    |Δε|)."""
     h = 1e-7 * np.abs(de).max()
     fd = np.empty((3, 3))
     for j in range(3):
         e = np.zeros(3)
         e[j] = h
-        fd[:, j] = (_update(params, stress, state, de + e)[0]
-                    - _update(params, stress, state, de - e)[0]) / (2 * h)
+        fd[:, j] = (_update(params, stress, state, de + e, dw)[0]
+                    - _update(params, stress, state, de - e, dw)[0]) / (2 * h)
     return fd
 
 
@@ -294,18 +295,12 @@ def _near_apex_family(turn, half_tr):
 
 def _check_face_points(params, stress, state, de, dw, cases):
     """Each case's returned state on its own surface, and its tangent equal to central
-    differences of the whole update (the pattern of the dumped-increment tests below)."""
+    differences of the whole update (as the dumped-increment tests below check theirs)."""
     for k in cases:
         s1, q1, t1, status = _update(params, stress, state, de[k], dw)
         assert status == fm.STATUS_FACE
         assert abs(_own_yield(params, s1, q1)) <= 1e-10 * np.abs(s1).max()
-        h = 1e-7 * np.abs(de[k]).max()
-        fd = np.empty((3, 3))
-        for j in range(3):
-            e = np.zeros(3)
-            e[j] = h
-            fd[:, j] = (_update(params, stress, state, de[k] + e, dw)[0]
-                        - _update(params, stress, state, de[k] - e, dw)[0]) / (2 * h)
+        fd = _central_tangent(params, stress, state, de[k], dw)
         assert np.abs(t1 - fd).max() <= 1e-5 * np.abs(fd).max()
 
 
