@@ -13,19 +13,21 @@ rate is also given as a ratio to it. Timings are medians of ``--repeats`` runs o
 process's CPU time (both sides are single-threaded, so this is the per-core figure even
 when other jobs share the cores; ``*_wall`` figures give the wall-clock rate too).
 
-Measured (updates/s per core, ``python -m contfab.cli bench model --json``, 5 runs in a row on
-the shared 2-core machine, 2026-12-02, load 0.3 rising to 1.3 from another job; medians in
-brackets):
+Measured (updates/s per core, ``python -m contfab.cli bench model --json`` on the shared 2-core
+machine, 2026-12-02, main at 151b3fc; medians in brackets):
 
-* tier0: 2.42e7, 2.31e7, 2.23e7, 2.48e7, 2.37e7 (2.37e7; 0.36 of the numpy elastic update)
-* tier1: 8.08e6, 8.45e6, 7.68e6, 8.72e6, 8.41e6 (8.41e6; 0.12)
-* tier2: 5.72e5, 5.68e5, 5.46e5, 5.76e5, 5.70e5 (5.70e5; 0.0081)
-* tier2_aniso: 5.35e5, 5.30e5, 4.97e5, 5.51e5, 5.54e5 (5.35e5; 0.0080)
+* 5 runs in a row, load 0.4-0.7 (nothing else running):
+  tier0 2.53e7, 2.50e7, 2.54e7, 2.56e7, 2.53e7 (2.53e7; 0.35 of the numpy elastic update);
+  tier1 8.70e6, 8.71e6, 8.68e6, 8.71e6, 8.71e6 (8.71e6; 0.12);
+  tier2 5.69e5, 5.70e5, 5.68e5, 5.70e5, 5.73e5 (5.70e5; 0.0079);
+  tier2_aniso 5.48e5, 5.48e5, 5.48e5, 5.48e5, 5.49e5 (5.48e5; 0.0077).
+* 3 runs interleaved with the code before the speed-up (116a88d): tier2 4.34e5, 4.36e5,
+  4.31e5 (4.34e5) against 5.81e5, 5.69e5, 5.82e5 (5.81e5): 1.34x; tier2_aniso 4.25e5,
+  4.19e5, 4.17e5 (4.19e5) against 5.56e5, 5.47e5, 5.55e5 (5.55e5): 1.32x.
 
-Issue 3's targets (5e6 for tiers 0/1, 5e5 for tier 2) are met, tier 2 by 7-14 %: a load of
-2-3 on the other core costs ~30 % of the per-core rate here (2.83e5 at stop 13 against 4.1e5
-idle for the same code), so a single figure under load can fall below. At stop 13 (code
-116a88d) the same command gave 4.09e5 and 4.06e5 on the idle machine.
+Issue 3's targets (5e6 for tiers 0/1, 5e5 for tier 2) are met, tier 2 by 10-16 %. A load on
+the other core lowers the per-core rate here (2.83e5 at stop 13 at load ~3, 4.1e5 idle, the
+same code), so a single figure taken under load can fall below.
 
 What took a tier-2 update from 2.44 to ~1.8 µs (kernel alone on 100 000 of these points,
 minimum CPU time of several calls, each change measured against its parent interleaved):
