@@ -328,7 +328,7 @@ def test_near_apex_family_meets_the_apex_continuously(turn_deg):
     # The same increments with the deviator turned by 0°, 60°, 165° and tr Δε / 2 from -6.4e-4
     # to +3.6e-4 (R_tr/P_tr from 2.5 through P_tr = 0 to tension): the face solutions fall
     # linearly to P = 0 and the apex takes over there, σ continuous, never -1. Measured
-    # (2026-12-03): the boundary lies at tr Δε / 2 = +1.08e-4, -2.82e-4, -2.92e-4 (P_tr =
+    # (2026-12-02): the boundary lies at tr Δε / 2 = +1.08e-4, -2.82e-4, -2.92e-4 (P_tr =
     # -0.215, +0.565, +0.585), the last face points before it at P = 0.004, 0.002, 0.005.
     # At 0° the flows of this fabric dilate more than ψ's isotropic part (tr/(ε1 - ε2) =
     # +0.025 against sin ψ̄ = -0.012): tier 1's criterion put the increments with face points
@@ -368,7 +368,7 @@ LOOSE_NEAR_APEX = (np.array([0.0, 0.7567747158251259, 0.9860444464794237, 0.4281
 the face), |σ_n| = 2e-4 and a shear increment with P_tr = -3.6e-4, R_tr = 0.10. Along the
 face's directions the flow jumps where an arc's maximum moves to another local maximum (a
 ridge of f), so the scan's g jumps there instead of crossing zero (found by a random
-sample of such trials, 2026-12-03: a scan that took only the zeros of g left 37 of 3000
+sample of such trials, 2026-12-02: a scan that took only the zeros of g left 37 of 3000
 failed; it takes the ridge's flows λ N_a + (1 - λ) N_b at a jump since)."""
 
 

@@ -97,8 +97,9 @@ contraction (why, and what each flag gains: :mod:`contfab.jit_flags`).
 
 Inlined at numba's level (``inline="always"``): the LU and its solves (with a constant
 size, so they unroll), the residuals (``_residual``, ``_assemble``), the planes' check and
-step, the face point's check (``_resolved``), and of the callees ``slip_planes.yield_and_flow`` with ``plane_terms`` and
-``fabric_law.relaxation_step`` (inside ``fabric_step``). Each call of these passed the
+step, the face point's check (``_resolved``), and of the callees
+``slip_planes.yield_and_flow`` with ``plane_terms`` and ``fabric_law.relaxation_step`` (inside
+``fabric_step``). Each call of these passed the
 scratch's arrays as a dozen fields apiece; inlining them took the bench's tier-2 update
 from 3.3 to 2.8 µs, outputs bitwise unchanged (measured, 2026-12-02). Inlining the plane
 search too (``yield_value``, ``arc_maxima``, ``_refine_on_arc``, ``_h_on_arc``) and the
@@ -1153,8 +1154,8 @@ def _scan_return(c_n, qn, c_apex, prm, sc, s_ref):
     reaches 0.74 on loose anisotropic states, where two planes' deviators cancel; beyond the
     flow of its own direction a trial has no face point, and a criterion against the most
     dilatant flow would leave it failed at every step size from σ_n = 0. Nor against the
-    most dilatant plane: a flow's dilatancy exceeds max_θ sin ψ(θ) by up to 0.62 there.) It is taken at the apex's own state, which a face
-    root's own state reaches as P -> 0: face and apex meet continuously, P -> 0 at the
+    most dilatant plane: a flow's dilatancy exceeds max_θ sin ψ(θ) by up to 0.62 there.)
+    It is taken at the apex's own state, which a face root's own state reaches as P -> 0: face and apex meet continuously, P -> 0 at the
     boundary. The apex is returned where such a root exists and none gives a face point
     (a solve converging to σ ~ 0, :func:`_resolved`, is the apex to its accuracy); a face
     root whose solve fails leaves the point failed (-1), never at the apex, and so does a
@@ -1162,7 +1163,7 @@ def _scan_return(c_n, qn, c_apex, prm, sc, s_ref):
 
     Cost: ~SCAN_POINTS + 20 solves for ρ, each a few searched evaluations of f and N: about
     0.25 ms per trial with the shipped parameters, paid only where the other starts failed
-    and by the trials tier 1's criterion puts at the apex. Measured (2026-12-03, 2000 points
+    and by the trials tier 1's criterion puts at the apex. Measured (2026-12-02, 2000 points
     at σ_n = 0 with B/A = 0.25 under dilating increments, 72 % at the apex): 0.17 ms per
     update, 6.7 µs before the scan (whose apex came from tier 1's criterion directly).
     """
