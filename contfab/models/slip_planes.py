@@ -426,7 +426,8 @@ def plane_terms(cu, su, c2, s2, g, m, r, ca, sa, fab, pl, k):
     phr_tt = -4.0 * (pc * c2 + ps * s2)
     phi, p_t, p_tt, phi_free = _clamped(phr, phr_t, phr_tt, fab[8], fab[9])
     # tan φ and sec²φ from one sincos (|φ| < π/2, cos φ > 0), which the slip angle needs too:
-    # cheaper than tan, a square root and a division (measured).
+    # in place of tan, a square root and a division (latencies measured here: sincos 15 ns,
+    # tan 18, sqrt 5.5, division 4; the update's time moved within noise).
     sp = np.sin(phi)
     cp = np.cos(phi)
     t = sp / cp
