@@ -32,7 +32,7 @@ positive, angles in radians in (-π/2, π/2]. Per history row:
 
 Run ``python -m dem.stress_force_fabric RUN_DIR ... --out DIR`` on directories written by
 ``contfab dem run`` (their ``history.csv`` and ``history.json``). It writes into DIR:
-``rows.csv`` (every row with the derived columns), ``correlations.csv`` (per path and
+``rows.csv`` (with ``--rows``: every row with the derived columns), ``correlations.csv`` (per path and
 phase: Pearson r of R/P with the contact part, the force part, the first-order sum and the
 full relation, the slope of R/P on the sum, and the RMS and mean of R/P minus each form),
 ``transients.csv`` (per run, :func:`transient_figures`), ``buildup.csv`` (per run,
@@ -314,10 +314,11 @@ def rotation_figures(meta: dict, h: dict, d: dict) -> dict | None:
             "RP": float(h["RP"][m].mean())}
 
 
-def dilatancy_fits(runs: list[tuple[dict, dict, dict]]) -> list[dict]:
+def dilatancy_fits(runs: list[tuple[dict, dict, dict]], rows_from: str = "all") -> list[dict]:
     """Least squares of the dilatancy d on the stress-ratio gap, pooled over the runs other
-    than the axes rotation (rows with a defined d past γs = 0.01), without and with the
-    fabric's alignment with the loading:
+    than the axes rotation (rows with a defined d past γs = 0.01; ``rows_from`` "all"
+    or "after_change": only the second leg of the reversal and the change of direction),
+    without and with the fabric's alignment with the loading:
 
     * ``rowe``:     d = k (R/P - M)                          (Rowe/Taylor, M fitted)
     * ``alignment``: d = k_f (α_D - α*) + d0                 (the fabric alone)
@@ -332,6 +333,8 @@ def dilatancy_fits(runs: list[tuple[dict, dict, dict]]) -> list[dict]:
             continue
         ph = phases(meta, h, d)
         ok = np.isfinite(d["dilatancy"]) & (d["gamma_s"] > 0.01)
+        if rows_from == "after_change":
+            ok &= (d["leg"] == 1) & (meta["path"] in TRANSIENT_PATHS)
         x_rp.append(h["RP"][ok]), x_al.append(d["alpha_D"][ok]), x_c.append(h["c"][ok])
         y.append(d["dilatancy"][ok])
         steady_al.append(d["alpha_D"][ph["steady"]]), steady_c.append(h["c"][ph["steady"]])
@@ -351,7 +354,7 @@ def dilatancy_fits(runs: list[tuple[dict, dict, dict]]) -> list[dict]:
         coef, *_ = np.linalg.lstsq(x, y, rcond=None)
         res = y - x @ coef
         cov = np.linalg.inv(x.T @ x) * float(res @ res) / max(1, y.size - x.shape[1])
-        row = {"model": name, "rows": int(y.size),
+        row = {"rows_from": rows_from, "model": name, "rows": int(y.size),
                "R2": float(1.0 - res @ res / np.sum((y - y.mean()) ** 2)),
                "alpha_star": a_star, "c_star": c_star}
         for n_, v, e in zip(names, coef, np.sqrt(np.diag(cov))):
@@ -477,8 +480,8 @@ def plot_scatter(runs, file: Path) -> Path:
 def plot_dilatancy(runs, fits: list[dict], file: Path) -> Path:
     """Dilatancy against the Rowe/Taylor gap R/P - M and against the ``fabric`` fit."""
     plt = _plt()
-    fab = next(f for f in fits if f["model"] == "fabric")
-    rowe = next(f for f in fits if f["model"] == "rowe")
+    fab = next(f for f in fits if f["model"] == "fabric" and f["rows_from"] == "all")
+    rowe = next(f for f in fits if f["model"] == "rowe" and f["rows_from"] == "all")
     fig, ax = plt.subplots(1, 2, figsize=(10, 4.5))
     for k, lab in enumerate(sorted({_label(m) for m, _, _ in runs if m["path"] != "axes_rotation"})):
         sel = [(h, d) for m, h, d in runs if _label(m) == lab]
@@ -503,8 +506,9 @@ def plot_dilatancy(runs, fits: list[dict], file: Path) -> Path:
     return _save(fig, file)
 
 
-def analyse(run_dirs: list[str | Path], out: str | Path) -> dict:
-    """Everything of the module doc, for the runs in ``run_dirs``, written into ``out``."""
+def analyse(run_dirs: list[str | Path], out: str | Path, with_rows: bool = False) -> dict:
+    """Everything of the module doc, for the runs in ``run_dirs``, written into ``out``
+    (``rows.csv`` only ``with_rows``)."""
     if not run_dirs:
         raise ValueError("no run directories given")
     out = Path(out)
@@ -512,18 +516,19 @@ def analyse(run_dirs: list[str | Path], out: str | Path) -> dict:
     for r in run_dirs:
         meta, h = read_run(r)
         runs.append((meta, h, derived(h, legs(meta, h))))
-    cols = list(runs[0][1]) + list(DERIVED)
-    rows = []
-    for meta, h, d in runs:
-        for i in range(len(h["tau"])):
-            rows.append([meta["run"], meta["path"], meta["density"], meta["seed"]]
-                        + [float(h[c][i]) if c in h else float(d[c][i]) for c in cols])
-    write_csv(out / "rows.csv", ["run", "path_name", "density", "seed"] + cols, rows)
+    if with_rows:
+        cols = list(runs[0][1]) + list(DERIVED)
+        rows = []
+        for meta, h, d in runs:
+            for i in range(len(h["tau"])):
+                rows.append([meta["run"], meta["path"], meta["density"], meta["seed"]]
+                            + [float(h[c][i]) if c in h else float(d[c][i]) for c in cols])
+        write_csv(out / "rows.csv", ["run", "path_name", "density", "seed"] + cols, rows)
     corr = correlations(runs)
     trans = [t for t in (transient_figures(*r) for r in runs) if t is not None]
     build = [t for t in (buildup_figures(*r) for r in runs) if t is not None]
     rot = [t for t in (rotation_figures(*r) for r in runs) if t is not None]
-    fits = dilatancy_fits(runs)
+    fits = dilatancy_fits(runs) + dilatancy_fits(runs, "after_change")
     means = (seed_means(trans, "transient") + seed_means(build, "buildup")
              + seed_means(rot, "rotation"))
     for name, table in (("correlations", corr), ("transients", trans), ("buildup", build),
@@ -548,9 +553,11 @@ def main(argv=None) -> None:
                                              "(see the module doc); writes CSV, JSON and PNG.")
     ap.add_argument("runs", nargs="+", help="directories written by 'contfab dem run'")
     ap.add_argument("--out", required=True, help="output directory")
+    ap.add_argument("--rows", action="store_true",
+                    help="also write rows.csv (every history row with the derived columns)")
     args = ap.parse_args(argv)
-    analyse(args.runs, args.out)
-    print(f"wrote {args.out}/: rows.csv correlations.csv transients.csv buildup.csv "
+    analyse(args.runs, args.out, with_rows=args.rows)
+    print(f"wrote {args.out}/: {'rows.csv ' if args.rows else ''}correlations.csv transients.csv buildup.csv "
           f"rotation.csv seed_means.csv dilatancy.csv summary.json paths.png reversal.png scatter.png "
           f"dilatancy.png")
 
