@@ -75,3 +75,18 @@ def test_stress_ratio_follows_the_anisotropies_in_biaxial_dem(packing_frictional
     assert np.corrcoef(h["RP"][1:], d["sff_full"][1:])[0, 1] > 0.95
     # the first-order form overestimates by about ½ a_c a_n of R/P
     assert d["sff"][late].mean() > full.mean()
+
+
+def test_a_history_without_the_force_anisotropy_is_refused_by_name(tmp_path):
+    from dem.stress_force_fabric import analyse
+
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "history.json").write_text(
+        '{"settings": {"seed": 1, "kappa": 1000.0, "n": 10, "mu_prep": 0.0},'
+        ' "path": {"name": "biaxial"}}')
+    (tmp_path / "run" / "history.csv").write_text("stage,tau,RP\n0,0.0,0.0\n")
+    with pytest.raises(ValueError, match="a_n"):
+        analyse([tmp_path / "run"], tmp_path / "out")
+    with pytest.raises(ValueError, match="no run directories"):
+        analyse([], tmp_path / "out")
+    assert not (tmp_path / "out").exists()
