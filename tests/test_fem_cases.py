@@ -6,11 +6,13 @@ import csv
 import io
 import json
 import math
+import os
 import subprocess
 import sys
 import tomllib
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from contfab.scenes.case import run_case
@@ -128,19 +130,39 @@ def test_case_listing(capsys):
                                   "simple_shear_reversal"))
 
 
+DEM_REFERENCE = Path(__file__).parent.parent / "contfab/scenes/data/simple_shear_reversal_dem"
+
+
+def test_the_simple_shear_reference_is_a_dem_sample_the_calibration_did_not_use():
+    """The stored DEM run has the calibration campaign's settings for this path (the
+    loose sample at κ = 1000) and a seed outside the campaign's: a held-out sample."""
+    run = json.loads(DEM_REFERENCE.with_suffix(".json").read_text())["settings"]
+    with default_params_path().open("rb") as fh:
+        prov = tomllib.load(fh)["provenance"]
+    campaign = prov["campaign"]
+    assert run["seed"] not in campaign["seeds"], (run["seed"], campaign["seeds"])
+    assert {k: run[k] for k in ("n", "mu", "inertial", "radii")} == \
+        {k: campaign[k] for k in ("n", "mu", "inertial", "radii")}
+    spec = prov["runs"]["simple_shear_reversal_loose_k1000"]
+    assert run["kappa"] == spec["kappa"] and run["mu_prep"] in (None, campaign["mu"])
+
+
 def test_simple_shear_reversal_fast_against_the_point_driver_and_the_dem(tmp_path):
-    """The homogeneous layer is the material point (τ/σn to 1e-6); the references are the
+    """The homogeneous layer is the material point (τ/σn to 2e-3); the references are the
     stored DEM curve's values at the stage ends; tier 2's fabric direction flips on
-    reversal as the DEM's does (θp < 0 after γ = +1, > 0 after γ = -1, within 15°)."""
+    reversal as the DEM's does (θp < 0 after γ = +1, > 0 after γ = -1, within 15°); both
+    tiers predict the held-out DEM sample's steady τ/σn (:func:`steady_gaps`)."""
     # its own process (``python cases/NAME.py``): after a failed strip_footing case in the
-    # same process its first tier-1 update hung (not yet understood; see the report)
+    # same process its first tier-1 update hung (not understood)
     root = Path(__file__).parent.parent
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [str(root)] + os.environ.get("PYTHONPATH", "").split(os.pathsep))}  # this checkout's
     done = subprocess.run([sys.executable, str(root / "cases/simple_shear_reversal.py"), "--fast",
                            "--json", "--quiet", "--out", str(tmp_path)],
-                          capture_output=True, text=True, timeout=180)
+                          capture_output=True, text=True, timeout=600, env=env)
     assert done.returncode == 0, done.stderr
     out = json.loads(done.stdout)
-    with open(root / "contfab/scenes/data/simple_shear_reversal_dem.csv") as fh:
+    with open(DEM_REFERENCE.with_suffix(".csv")) as fh:
         rows = list(csv.DictReader(fh))
     forward_end = [r for r in rows if r["stage"] == "0"][-1]
     expected = {"+1": forward_end, "-1": rows[-1]}
@@ -149,14 +171,40 @@ def test_simple_shear_reversal_fast_against_the_point_driver_and_the_dem(tmp_pat
         assert f["reference"] == pytest.approx(float(row["sxy"]) / -float(row["syy"]), rel=1e-9)
     # the layer and the driver integrate the same update on different step grids (the FEM's
     # Δγ = 0.05 after a dt/4 start, the driver's 0.01 output rows); from the DEM's start
-    # (c0 - c* = 0.0023) c evolves, so they differ at O(Δγ): 6.1e-4 measured (1e-13 at c*)
+    # (c0 - c* = -0.0036) c evolves, so they differ at O(Δγ): 1.0e-3 measured (1e-13 at c*)
     assert out["tier1"]["max_dev_vs_point"] < 2e-3
     t2 = out["tier2"]
     assert t2["theta_p_at_gamma_1"] < 0 < t2["theta_p_at_gamma_-1"]
     assert t2["dem_theta_p_at_gamma_1"] < 0 < t2["dem_theta_p_at_gamma_-1"]
     for g in ("1", "-1"):
         assert abs(t2[f"theta_p_at_gamma_{g}"] - t2[f"dem_theta_p_at_gamma_{g}"]) < 15.0
-    assert "simple_shear_reversal_vs_dem.csv" in {p.name for p in tmp_path.iterdir()}
+    with open(tmp_path / "simple_shear_reversal_vs_dem.csv") as fh:
+        table = list(csv.DictReader(fh))
+    gaps = steady_gaps(table)
+    assert all(abs(gap) <= bound for gap, bound in gaps.values()), gaps
+
+
+STEADY = 0.3
+"""The steady part of each stage: its last 30 % (the calibration's residual window)."""
+
+
+def steady_gaps(table: list[dict]) -> dict[tuple[str, int], tuple[float, float]]:
+    """{(tier, stage): (model - DEM, bound)} of the mean τ/σn over the steady part of
+    each stage, on the DEM's rows (``simple_shear_reversal_vs_dem.csv``). The bound is 3
+    standard errors of the DEM sample's own mean there, sd/√rows (the rows, 0.01 of γ
+    apart, taken as independent): the model predicts the held-out sample's steady stress
+    ratio as closely as that sample determines it. Measured: tier 1 +0.0068 / -0.0016
+    against bounds 0.0134 / 0.0121 (forward / reverse), tier 2 +0.0091 / -0.0018."""
+    tau = np.array([float(r["tau"]) for r in table])
+    gaps = {}
+    for stage, (start, end) in enumerate(((0.0, 1.0), (1.0, 3.0))):
+        rows = (tau >= end - STEADY * (end - start)) & (tau <= end + 1e-9)
+        dem = np.array([float(r["dem_ratio"]) for r in table])[rows]
+        for tier in ("tier1", "tier2"):
+            model = np.array([float(r[f"{tier}_ratio"]) for r in table])[rows]
+            gaps[(tier, stage)] = (float(model.mean() - dem.mean()),
+                                   3.0 * float(dem.std(ddof=1)) / math.sqrt(rows.sum()))
+    return gaps
 
 
 def _failure(value: float):
