@@ -133,9 +133,8 @@ UNIT_OPEN = Range(0.0, 1.0)
 # --------------------------------------------------------------------------- kernel arrays
 # Offset of each value in the flat array of Params.array(tier): the sections' array()
 # write by these names and the kernels read prm[NAME], so the two cannot disagree on the
-# order. numba freezes them at compile time, and its on-disk cache does not see a change
-# here: after changing an offset, clear the kernels' cache (the *.nbi, *.nbc files of
-# contfab/models/__pycache__, or of NUMBA_CACHE_DIR).
+# order. numba freezes them at compile time (its cache is keyed on every source file, so
+# an edit here recompiles the kernels: dem.numba_cache).
 # All tiers: the regularization's moduli.
 BULK = 0            # K
 SHEAR = 1           # G
