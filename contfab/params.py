@@ -20,9 +20,9 @@ range, then the section's cross-field rules, then rules that involve two section
 
 Adding a section is local: write its dataclass, add it to :data:`SECTIONS`, and
 list which sections a tier's kernel reads in :data:`TIER_SECTIONS`.
-:meth:`Params.array` concatenates their :meth:`Section.array` parts into the flat
-float64 array the kernel reads; the index layout is documented next to each
-kernel (tiers 0/1: :mod:`contfab.models.cone`; tier 2: :mod:`contfab.models.fabric_model`).
+:meth:`Params.array` places their :meth:`Section.array` parts into the flat
+float64 array the kernel reads, each value at its named offset (the module constants
+``BULK`` ... ``RELAX_RATE`` below); the kernels read ``prm[NAME]`` by the same names.
 
 Units: angles in degrees here (user-facing), radians in the arrays; stresses in
 the scene's stress unit (``p_ref`` is the scene's stress scale, e.g. P0 = 1 in DEM
@@ -102,9 +102,10 @@ class Section:
     def check_with(self, sections: Mapping[str, "Section"]) -> None:
         """Rules that involve other sections of the same file (raise :class:`ParamError`)."""
 
-    def array(self) -> tuple[float, ...]:
-        """This section's part of a kernel's parameter array (layout: next to the kernel)."""
-        return ()
+    def array(self) -> dict[int, float]:
+        """This section's part of a kernel's parameter array: {offset: value} (offsets: the
+        module constants)."""
+        return {}
 
     def to_dict(self) -> dict[str, float]:
         """The section as its TOML table (the inverse of :meth:`from_dict`)."""
@@ -127,6 +128,44 @@ class Section:
 
 POSITIVE = Range(0.0, math.inf)
 UNIT_OPEN = Range(0.0, 1.0)
+
+
+# --------------------------------------------------------------------------- kernel arrays
+# Offset of each value in the flat array of Params.array(tier): the sections' array()
+# write by these names and the kernels read prm[NAME], so the two cannot disagree on the
+# order. numba freezes them at compile time (its cache is keyed on every source file, so
+# an edit here recompiles the kernels: dem.numba_cache).
+# All tiers: the regularization's moduli.
+BULK = 0            # K
+SHEAR = 1           # G
+# Tier 0.
+SIN_PHI = 2         # sin phi
+SIN_PSI = 3         # sin psi
+# Tiers 1 and 2 (angles in radians).
+PHI_STAR = 2        # phi* (tier 2 reads a0 in its place)
+DPHI_DC = 3         # phi' = dphi/dc
+DPSI_DC = 4         # psi' = dpsi/dc
+C_STAR = 5          # c*
+PHI_MIN = 6         # clamps of phi(c)
+PHI_MAX = 7
+# Tier 2 (angles in radians).
+A0 = 8              # plane friction: a0 + a1 A + a2 B cos(2(theta - theta_p) + a3)
+A1 = 9
+A2 = 10
+A3 = 11
+B0 = 12             # plane dilatancy: b0 + b1 A + b2 B cos(2(theta - theta_p) + b3)
+B1 = 13
+B2 = 14
+B3 = 15
+SHARPNESS = 16      # softmax sharpness beta
+N_SEARCH = 17       # plane-search grid points per arc (an integer)
+FABRIC_LAW = 18     # Tier2.LAWS code: 0 balance, 1 relaxation
+KAPPA_A = 19        # balance law: kappa_a, kc, ko
+K_C = 20
+K_O = 21
+A_CRIT = 22         # relaxation law: A_c = z_c/pi, b_c = B_c/A_c, rate k per unit plastic shear
+B_RATIO_CRIT = 23
+RELAX_RATE = 24
 
 
 # --------------------------------------------------------------------------- sections
@@ -152,8 +191,9 @@ class Regularization(Section):
         e = self.lam * self.p_ref
         return e / (2.0 * (1.0 - self.nu)), e / (2.0 * (1.0 + self.nu))
 
-    def array(self) -> tuple[float, ...]:
-        return self.moduli()
+    def array(self) -> dict[int, float]:
+        bulk, shear = self.moduli()
+        return {BULK: bulk, SHEAR: shear}
 
     def check_return(self, min_sin_product: float, what: str) -> None:
         """The cone return divides by G + K sin φ sin ψ: it must stay positive.
@@ -189,8 +229,9 @@ class Tier0(Section):
             math.sin(math.radians(self.phi_deg)) * math.sin(math.radians(self.psi_deg)),
             f"[tier0] phi_deg = {self.phi_deg:g}, psi_deg = {self.psi_deg:g}")
 
-    def array(self) -> tuple[float, ...]:
-        return math.sin(math.radians(self.phi_deg)), math.sin(math.radians(self.psi_deg))
+    def array(self) -> dict[int, float]:
+        return {SIN_PHI: math.sin(math.radians(self.phi_deg)),
+                SIN_PSI: math.sin(math.radians(self.psi_deg))}
 
 
 @dataclass(frozen=True)
@@ -227,10 +268,11 @@ class Tier1(Section):
             -s * s if self.dpsi_dc_deg > 0 else 0.0,
             f"[tier1] phi_star_deg = {self.phi_star_deg:g} (worst case psi = -phi*)")
 
-    def array(self) -> tuple[float, ...]:
+    def array(self) -> dict[int, float]:
         r = math.radians
-        return (r(self.phi_star_deg), r(self.dphi_dc_deg), r(self.dpsi_dc_deg), self.c_star,
-                r(self.phi_min_deg), r(self.phi_max_deg))
+        return {PHI_STAR: r(self.phi_star_deg), DPHI_DC: r(self.dphi_dc_deg),
+                DPSI_DC: r(self.dpsi_dc_deg), C_STAR: self.c_star,
+                PHI_MIN: r(self.phi_min_deg), PHI_MAX: r(self.phi_max_deg)}
 
 
 @dataclass(frozen=True)
@@ -315,12 +357,14 @@ class Tier2(Section):
                 f"b z_c/pi < 1 (seed 000 eqs 1.14-1.15), got "
                 f"{self.z_crit / 6 + math.sqrt(3) / 4 * self.b_ratio_crit * a_c:.4g}")
 
-    def array(self) -> tuple[float, ...]:
+    def array(self) -> dict[int, float]:
         r = math.radians
-        return (r(self.a0_deg), r(self.a1_deg), r(self.a2_deg), r(self.a3_deg),
-                r(self.b0_deg), r(self.b1_deg), r(self.b2_deg), r(self.b3_deg),
-                self.sharpness, self.n_search, self.fabric_law, self.kappa_a, self.k_c,
-                self.k_o, self.z_crit / math.pi, self.b_ratio_crit, self.relax_rate)
+        return {A0: r(self.a0_deg), A1: r(self.a1_deg), A2: r(self.a2_deg), A3: r(self.a3_deg),
+                B0: r(self.b0_deg), B1: r(self.b1_deg), B2: r(self.b2_deg), B3: r(self.b3_deg),
+                SHARPNESS: self.sharpness, N_SEARCH: self.n_search, FABRIC_LAW: self.fabric_law,
+                KAPPA_A: self.kappa_a, K_C: self.k_c, K_O: self.k_o,
+                A_CRIT: self.z_crit / math.pi, B_RATIO_CRIT: self.b_ratio_crit,
+                RELAX_RATE: self.relax_rate}
 
 
 @dataclass(frozen=True)
@@ -366,7 +410,7 @@ TIER_SECTIONS: dict[int, tuple[str, ...]] = {
     1: ("regularization", "tier1"),
     2: ("regularization", "tier1", "tier2"),     # tier 2 reads tier 1's c-terms and clamps
 }
-"""Sections whose :meth:`Section.array` parts, concatenated, form a tier's kernel array."""
+"""Sections whose :meth:`Section.array` parts, together, form a tier's kernel array."""
 
 def _check_tier(tier) -> int:
     if isinstance(tier, bool) or not isinstance(tier, (int, np.integer)) or int(tier) not in TIER_SECTIONS:
@@ -421,8 +465,10 @@ class Params:
             if missing:
                 raise ParamError(f"tier {tier} needs section(s) {', '.join(missing)}, "
                                  f"absent from {self.source}")
-            self._arrays[tier] = np.array(
-                [v for s in TIER_SECTIONS[tier] for v in self.sections[s].array()], dtype=np.float64)
+            at = {}
+            for s in TIER_SECTIONS[tier]:
+                at.update(self.sections[s].array())
+            self._arrays[tier] = np.array([at[k] for k in range(len(at))], dtype=np.float64)
         return self._arrays[tier].copy()
 
     def replace(self, section: str, **changes) -> "Params":

@@ -12,8 +12,8 @@ from hypothesis import given, settings, strategies as st
 from scipy.optimize import fsolve
 
 from contfab.models import tiers
-from contfab.models.cone import friction_angles
-from contfab.params import Params
+from contfab.models.cone import friction_angles, tier1_angles
+from contfab.params import BULK, SHEAR, SIN_PHI, SIN_PSI, Params
 
 STATUS_FAILED, STATUS_ELASTIC, STATUS_FACE, STATUS_APEX = -1, 0, 1, 2
 
@@ -37,9 +37,9 @@ def angles(params, tier, c):
     if tier == 0:
         prm = params.array(0)
         n = len(c)
-        return np.full(n, prm[2]), np.full(n, prm[3]), np.zeros((n, 2))
+        return np.full(n, prm[SIN_PHI]), np.full(n, prm[SIN_PSI]), np.zeros((n, 2))
     prm = params.array(1)
-    out = np.array([friction_angles(ci, *prm[2:]) for ci in c])
+    out = np.array([tier1_angles(ci, prm) for ci in c])
     return np.sin(out[:, 0]), np.sin(out[:, 1]), out[:, 2:]
 
 
@@ -59,8 +59,8 @@ def pr(s):
 
 
 def moduli(params, tier):
-    k, g = params.array(tier)[:2]
-    return k, g
+    prm = params.array(tier)
+    return prm[BULK], prm[SHEAR]
 
 
 def plastic_strain(params, tier, stress_n, dstrain, dspin, stress):

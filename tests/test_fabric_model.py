@@ -12,7 +12,7 @@ from contfab.models import slip_planes as sp
 from contfab.models import fabric_law
 from contfab.models.fabric_law import LAW_BALANCE, rotate_fabric
 from contfab.tensors import rotate
-from contfab.params import load_params
+from contfab.params import BULK, SHEAR, load_params
 from dem.conventions import admissibility_margin
 
 ANISO = dict(a1_deg=3.0, a2_deg=12.0, a3_deg=20.0, b0_deg=1.0, b1_deg=2.0, b2_deg=8.0,
@@ -188,7 +188,7 @@ def test_face_return_solves_backward_euler_and_tangent_matches_differences(
 
 def test_tension_trial_returns_to_the_apex():
     prm = model_params(**ANISO)
-    bulk = prm.array(2)[0]
+    bulk = prm.array(2)[BULK]
     stress = stress_at(0.1, 0.02, 0.3)
     state = _state(0.80, 0.95, 0.2, 0.4)
     de = np.array([3e-3, 2e-3, 1e-3])
@@ -201,7 +201,7 @@ def test_tension_trial_returns_to_the_apex():
 
 def test_bad_input_fails_with_inputs_returned_and_never_nan():
     prm = model_params(**ANISO)
-    bulk, shear = prm.array(2)[:2]
+    bulk, shear = prm.array(2)[[BULK, SHEAR]]
     good_s = stress_at(1.0, 0.3, 0.2)
     good_q = _state(0.81, 0.95, 0.2, 0.4)
     rows = [(np.array([np.nan, -1, 0]), good_q, np.zeros(3), 0.0),
@@ -611,7 +611,7 @@ def test_rotating_principal_axes_at_fixed_p_and_r_flow_only_with_fabric():
     # Acceptance 3: R/P below tier 1's sin φ: tier 1 stays rigid (elastic, no plastic strain)
     # while tier 2 with B > 0 yields where the stress axes meet the weak planes of the fabric.
     params = model_params(lam=1000.0, nu=0.2, a2_deg=15.0)
-    bulk, shear = params.array(2)[:2]
+    bulk, shear = params.array(2)[[BULK, SHEAR]]
     c_inv = np.linalg.inv([[bulk + shear, bulk - shear, 0], [bulk - shear, bulk + shear, 0],
                            [0, 0, shear]])
     r = 0.9 * np.sin(np.radians(25.0))

@@ -6,7 +6,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from contfab import material_point as mp
-from contfab.models.cone import friction_angles
+from contfab.models.cone import tier1_angles
 from conftest import fixed_params
 from dem.paths import parse_path
 
@@ -23,7 +23,7 @@ def rigid_plastic_c(params, eps_yy):
     prm = params.array(1)
 
     def rate(_, y):
-        s = np.sin(friction_angles(y[0], *prm[2:])[1])
+        s = np.sin(tier1_angles(y[0], prm)[1])
         return [y[0] * 2 * s / (1 - s)]
 
     return np.array([solve_ivp(rate, (0, eps_yy), [c], rtol=1e-12, atol=1e-14).y[0, -1] for c in C0])
@@ -42,7 +42,7 @@ def test_results_converge_at_first_order_in_one_over_lambda():
         finals[lam] = c_end, syy_end
         # at yield the stress is the rigid-plastic one for the current c, at any λ:
         # σyy = -P0 (1 + sin φ)/(1 - sin φ) (to the driver's tolerance on σxx = -P0, 1e-12)
-        sphi = np.sin([friction_angles(c, *prm[2:])[0] for c in c_end])
+        sphi = np.sin([tier1_angles(c, prm)[0] for c in c_end])
         assert syy_end == pytest.approx(-(1 + sphi) / (1 - sphi), rel=1e-11)
     c_ref, s_ref = finals[1e6]
     errors = [np.abs(finals[lam][0] - c_ref) for lam in (1e2, 1e3, 1e4)]

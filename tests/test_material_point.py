@@ -10,7 +10,7 @@ import pytest
 
 from contfab import material_point as mp
 from contfab.models import tiers
-from contfab.models.cone import friction_angles
+from contfab.models.cone import tier1_angles
 from contfab.params import ParamError
 from conftest import fixed_params
 from dem.paths import COMPONENTS, STRESS_INDEX, Path, load_path, parse_path, standard_paths
@@ -215,7 +215,7 @@ def test_tier1_dense_and_loose_reach_the_critical_state():
     # the stress ratio is the yield one of the current c at every row past the first
     prm = params.array(1)
     for res in (dense, loose):
-        sphi = np.sin([friction_angles(c, *prm[2:])[0] for c in res["c_p"][2:]])
+        sphi = np.sin([tier1_angles(c, prm)[0] for c in res["c_p"][2:]])
         assert res["RP"][2:] == pytest.approx(sphi, rel=1e-10)
 
 

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from contfab.models import tiers
+from contfab.params import BULK, SHEAR
 from test_cone import STATUS_APEX, STATUS_FACE, STATUS_FAILED, angles, make_params, pr
 
 
@@ -27,7 +28,7 @@ def test_zero_dilatancy_apex_is_deterministic_under_round_off(tier):
     dstrain = np.tile([1e-3, -1e-3, 2e-3], (n, 1))
     dstrain[:, 0] += np.arange(-20, 21) * ulp
     res = tiers.update(tier, np.zeros((n, 3)), np.repeat(state, n, 0), dstrain, np.zeros(n), params)
-    k = params.array(tier)[0]
+    k = params.array(tier)[BULK]
     assert np.all(np.abs(res.stress) <= 100 * k * ulp)
     assert set(res.status) <= {STATUS_FACE, STATUS_APEX}
     ref = res.tangent[n // 2]
@@ -94,7 +95,7 @@ def test_no_nan_or_failure_for_extreme_inputs(tier, lam, phi):
         assert np.all(np.isfinite(a))
     pp, rr = pr(res.stress)
     sphi = angles(params, tier, res.state[:, -1])[0]
-    mag = np.abs(stress).max(axis=1) + 2 * params.array(tier)[0] * np.abs(dstrain).max(axis=1)
+    mag = np.abs(stress).max(axis=1) + 2 * params.array(tier)[BULK] * np.abs(dstrain).max(axis=1)
     assert np.all(rr - sphi * pp <= 1e-10 * np.abs(pp) + 1e-15 * mag)
     assert np.all(pp >= 0.0)                          # a cohesionless cone carries no tension
 
@@ -116,7 +117,7 @@ def test_failed_points_return_inputs_and_the_rest_is_unaffected(tier):
     bad = [1, 2, 3] + ([4] if tier == 1 else [])
     assert list(res.failed) == bad
     assert np.array_equal(res.stress[bad], stress[bad]) and np.array_equal(res.state[bad], state[bad])
-    k, g = params.array(tier)[:2]
+    k, g = params.array(tier)[[BULK, SHEAR]]
     assert np.allclose(res.tangent[bad], [[k + g, k - g, 0], [k - g, k + g, 0], [0, 0, g]])
     good = [i for i in range(n) if i not in bad]
     ref = tiers.update(tier, stress[:1], state[:1], dstrain[:1], dspin[:1], params)

@@ -1,9 +1,13 @@
 """Parameter files: the shipped defaults, the kernel array layout, and bad values (acceptance 7)."""
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from contfab import params as params_module
+from contfab import models
 from contfab.models import fabric_model, tiers
 from contfab.params import ParamError, Params, default_params, default_params_path, load_params
 from conftest import FIXED_PARAMS, fixed_params
@@ -36,30 +40,65 @@ def test_default_file_is_a_calibration_output_with_its_provenance():
     assert 15.0 <= p.tier1.phi_star_deg <= 17.5 and 0.80 <= p.tier1.c_star <= 0.82
 
 
-def test_array_layout_matches_the_kernel_doc():
-    # cone.py: tier 0 [K, G, sin φ, sin ψ]; tier 1 [K, G, φ*, φ', ψ', c*, φmin, φmax] (rad)
-    p = Params.from_dict(_doc(**{"regularization.lambda": 200.0, "regularization.p_ref": 3.0,
-                                 "regularization.nu": 0.25, "tier0.psi_deg": -5.0}))
-    e = 600.0
-    k, g = e / (2 * 0.75), e / (2 * 1.25)
-    assert p.array(0) == pytest.approx([k, g, math.sin(math.radians(22)), math.sin(math.radians(-5))],
-                                       rel=1e-15)
-    assert p.array(1) == pytest.approx([k, g, math.radians(22), math.radians(250), math.radians(300),
-                                        0.81, math.radians(1), math.radians(60)], rel=1e-15)
-    # fabric_model.py: tier 2 = tier 1's array, then a0..a3, b0..b3 (rad), β, n_search, law,
-    # κa, kc, ko, z_c/π, b_c, k
-    assert p.array(2)[:8] == pytest.approx(p.array(1), rel=1e-15)
+# One value per parameter, none equal to another once in the kernel arrays (radians, K, G,
+# A_c = z_c/pi), so each named offset is checked against its own parameter.
+DISTINCT = {
+    "regularization": {"lambda": 200.0, "p_ref": 3.0, "nu": 0.25},
+    "tier0": {"phi_deg": 22.0, "psi_deg": -5.0},
+    "tier1": {"phi_star_deg": 23.0, "dphi_dc_deg": 250.0, "dpsi_dc_deg": 300.0, "c_star": 0.81,
+              "phi_min_deg": 1.5, "phi_max_deg": 61.0},
+    "tier2": {"a0_deg": 24.0, "a1_deg": 5.0, "a2_deg": 6.0, "a3_deg": 7.0, "b0_deg": 2.0,
+              "b1_deg": 3.0, "b2_deg": 4.0, "b3_deg": 8.0, "sharpness": 40.0, "n_search": 9.0,
+              "fabric_law": "relaxation", "kappa_a": 3.5, "k_c": 17.0, "k_o": 11.0,
+              "z_crit": 3.3, "b_ratio_crit": 0.2, "relax_rate": 12.0},
+    "initial": {"c0": 0.8},
+}
+E_REG = 200.0 * 3.0                                   # lambda * p_ref
+K_REG, G_REG = E_REG / (2 * 0.75), E_REG / (2 * 1.25)  # 2D: K = E/(2(1 - nu)), G = E/(2(1 + nu))
+rad = math.radians
+TIER1_VALUES = {"BULK": K_REG, "SHEAR": G_REG, "PHI_STAR": rad(23.0), "DPHI_DC": rad(250.0),
+                "DPSI_DC": rad(300.0), "C_STAR": 0.81, "PHI_MIN": rad(1.5), "PHI_MAX": rad(61.0)}
+EXPECTED = {
+    0: {"BULK": K_REG, "SHEAR": G_REG, "SIN_PHI": math.sin(rad(22.0)),
+        "SIN_PSI": math.sin(rad(-5.0))},
+    1: TIER1_VALUES,
+    2: {**TIER1_VALUES, "A0": rad(24.0), "A1": rad(5.0), "A2": rad(6.0), "A3": rad(7.0),
+        "B0": rad(2.0), "B1": rad(3.0), "B2": rad(4.0), "B3": rad(8.0), "SHARPNESS": 40.0,
+        "N_SEARCH": 9.0, "FABRIC_LAW": 1.0, "KAPPA_A": 3.5, "K_C": 17.0, "K_O": 11.0,
+        "A_CRIT": 3.3 / math.pi, "B_RATIO_CRIT": 0.2, "RELAX_RATE": 12.0},
+}
+"""Each tier's array by offset name: what the kernels read at ``prm[NAME]``."""
+
+
+@pytest.mark.parametrize("tier", sorted(EXPECTED))
+def test_every_named_offset_reads_its_own_parameter(tier):
+    prm = Params.from_dict({"tier": tier, **DISTINCT}).array(tier)
+    assert len(set(prm)) == prm.size                  # distinct: no check below passes by chance
+    offsets = {name: getattr(params_module, name) for name in EXPECTED[tier]}
+    assert sorted(offsets.values()) == list(range(prm.size))    # every slot named, once
+    for name, value in EXPECTED[tier].items():
+        assert prm[offsets[name]] == pytest.approx(value, rel=1e-15), name
+
+
+def test_kernels_read_their_parameters_by_name():
+    """No kernel indexes its parameter array by a bare number (offsets: contfab.params)."""
+    bare = re.compile(r"\bprm\[\s*[-+:0-9]")
+    found = [f"{path.name}:{n}: {line.strip()}"
+             for path in sorted(Path(models.__file__).parent.glob("*.py"))
+             for n, line in enumerate(path.read_text().splitlines(), 1) if bare.search(line)]
+    assert not found
+
+
+def test_array_size_copy_and_moduli():
+    p = Params.from_dict({"tier": 2, **DISTINCT})
     assert p.array(2).size == fabric_model.N_PRM
-    assert p.array(2)[8] == pytest.approx(math.radians(22)) and p.array(2)[18] == 0.0
-    relax = p.replace("tier2", fabric_law=1.0, z_crit=3.3)
-    assert relax.array(2)[18] == 1.0 and relax.array(2)[22] == pytest.approx(3.3 / math.pi)
     a = p.array(1)
-    a[0] = -1.0                                      # a copy: the cached array is untouched
-    assert p.array(1)[0] == pytest.approx(k)
-    # K, G are those of the 2D isotropic law: uniaxial stress gives Young's E and ratio ν
-    c = np.array([[k + g, k - g], [k - g, k + g]])
+    a[params_module.BULK] = -1.0                     # a copy: the cached array is untouched
+    assert p.array(1)[params_module.BULK] == pytest.approx(K_REG)
+    # K, G are those of the 2D isotropic law: uniaxial stress gives Young's E and ratio nu
+    c = np.array([[K_REG + G_REG, K_REG - G_REG], [K_REG - G_REG, K_REG + G_REG]])
     strain = np.linalg.solve(c, [1.0, 0.0])
-    assert 1.0 / strain[0] == pytest.approx(e) and -strain[1] / strain[0] == pytest.approx(0.25)
+    assert 1.0 / strain[0] == pytest.approx(E_REG) and -strain[1] / strain[0] == pytest.approx(0.25)
 
 
 def test_initial_state_from_the_initial_section():
@@ -153,7 +192,7 @@ def test_structural_errors_are_clear(tmp_path):
 
 def test_replace_revalidates_and_unknown_tier_at_update():
     p = fixed_params()
-    assert p.replace("regularization", lam=1e6).array(0)[0] == pytest.approx(5e5)
+    assert p.replace("regularization", lam=1e6).array(0)[params_module.BULK] == pytest.approx(5e5)
     with pytest.raises(ParamError, match="lambda = -1"):
         p.replace("regularization", lam=-1.0)
     with pytest.raises(ParamError, match="phi_deg = 0"):

@@ -68,7 +68,7 @@ import numpy as np
 from dem.threads import numba_threads
 from contfab.bench import median_seconds
 from contfab.models import tiers
-from contfab.params import default_params
+from contfab.params import BULK, SHEAR, default_params
 from contfab.tensors import isotropic_stiffness
 
 BENCH_CASES = {"tier0": (0, False), "tier1": (1, False), "tier2": (2, False),
@@ -103,7 +103,7 @@ def yielding_points(params, tier: int, n: int, seed: int = 0, anisotropic: bool 
         two_theta_p = two + np.pi      # the shear extends along two/2: compression at +90°
         state[:, names.index("Bc")] = b * np.cos(two_theta_p)
         state[:, names.index("Bs")] = b * np.sin(two_theta_p)
-    shear = params.array(tier)[1]
+    shear = params.array(tier)[SHEAR]
     onto = tiers.update(tier, stress, state, 2.0 * params.p_ref / shear * direction,
                         np.zeros(n), params)
     dspin = 1e-4 * rng.standard_normal(n)
@@ -127,7 +127,7 @@ def run(args) -> dict:
                 kernel(stress, state, dstrain, dspin, prm, out.stress, out.state, out.tangent,
                        out.status)
 
-            c = isotropic_stiffness(*prm[:2])
+            c = isotropic_stiffness(prm[BULK], prm[SHEAR])
 
             def elastic():
                 return stress + np.einsum("ij,nj->ni", c, dstrain)

@@ -349,7 +349,7 @@ def _cone_probe(params: Params, tier: int, c: float) -> dict:
     if tier == 0:
         phi, psi = math.radians(params.tier0.phi_deg), math.radians(params.tier0.psi_deg)
     else:
-        phi, psi = cone.friction_angles(c, *params.array(1)[2:])[:2]
+        phi, psi = cone.tier1_angles(c, params.array(1))[:2]
     normal, flow, delta = cone_angles(math.sin(phi), math.sin(psi))
     return {"normal_deg": normal, "flow_deg": flow, "delta_deg": delta, "c": float(c)}
 

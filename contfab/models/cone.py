@@ -84,6 +84,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from contfab.params import (BULK, C_STAR, DPHI_DC, DPSI_DC, PHI_MAX, PHI_MIN, PHI_STAR, SHEAR,
+                            SIN_PHI, SIN_PSI)
 from contfab.tensors import isotropic_stiffness_into, rotate
 from dem.conventions import deviator_radius, pressure
 
@@ -134,6 +136,14 @@ def friction_angles(c, phi_star, dphi, dpsi, c_star, phi_min, phi_max):
         psi = -phi
         psi_c = -phi_c
     return phi, psi, phi_c, psi_c
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def tier1_angles(c, prm):
+    """:func:`friction_angles` at c with the tier-1 parameters of a kernel array ``prm``
+    (:meth:`contfab.params.Params.array` of tier 1 or 2)."""
+    return friction_angles(c, prm[PHI_STAR], prm[DPHI_DC], prm[DPSI_DC], prm[C_STAR],
+                           prm[PHI_MIN], prm[PHI_MAX])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -269,10 +279,10 @@ def _tier0_point(i, stress_n, state_n, dstrain, dspin, bulk, shear, sphi, spsi,
 @njit(cache=True, parallel=True, error_model="numpy")
 def update_points_tier0(stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status):
     """Tier 0 update of every point (layout of ``prm``: module doc). Writes the outputs."""
-    bulk = prm[0]
-    shear = prm[1]
-    sphi = prm[2]
-    spsi = prm[3]
+    bulk = prm[BULK]
+    shear = prm[SHEAR]
+    sphi = prm[SIN_PHI]
+    spsi = prm[SIN_PSI]
     for i in prange(stress_n.shape[0]):
         if _inputs_finite(stress_n, state_n, dstrain, dspin, i):
             _tier0_point(i, stress_n, state_n, dstrain, dspin, bulk, shear, sphi, spsi,
@@ -292,7 +302,7 @@ def _tier1_face(y, c, p_tr, r_tr, bulk, shear, prm):
     H(y) = y + Δγ(y) sin ψ(y), Δγ = (R_tr - sin φ P_tr)/D, and derivatives in y.
     The face is valid where a > 0. (|φ|, |ψ| < π/2, so cos = sqrt(1 - sin²).)
     """
-    phi, psi, phi_c, psi_c = friction_angles(c, prm[2], prm[3], prm[4], prm[5], prm[6], prm[7])
+    phi, psi, phi_c, psi_c = tier1_angles(c, prm)
     sphi = np.sin(phi)
     spsi = np.sin(psi)
     sphi_y = np.sqrt(1.0 - sphi * sphi) * phi_c * c
@@ -325,8 +335,8 @@ def _tier1_tangent(r_tr, n_d, n_t, rho, bulk, shear, sphi, spsi, sphi_y, spsi_y,
 @njit(cache=True, error_model="numpy", inline="always")
 def _tier1_point(i, stress_n, state_n, dstrain, dspin, prm, sin_phi_star, stress, state,
                  tangent, status):
-    bulk = prm[0]
-    shear = prm[1]
+    bulk = prm[BULK]
+    shear = prm[SHEAR]
     gp_n = state_n[i, 0]
     c_n = state_n[i, 1]
     if not (0.0 < c_n < 1.0):
@@ -369,8 +379,8 @@ def _tier1_point(i, stress_n, state_n, dstrain, dspin, prm, sin_phi_star, stress
     # Newton step that leaves the bracket or is not at least twice shorter than the step
     # before the last one is replaced by a bisection (H can be steep between two pieces
     # where it has slope 1, and plain Newton then bounces between them).
-    lo = min(c_n, prm[5])
-    hi = max(c_n, prm[5])
+    lo = min(c_n, prm[C_STAR])
+    hi = max(c_n, prm[C_STAR])
     y = 0.0
     c = c_n
     dy_last = (hi - lo) / lo          # >= the bracket's width in y
@@ -392,8 +402,7 @@ def _tier1_point(i, stress_n, state_n, dstrain, dspin, prm, sin_phi_star, stress
             # Last Newton step: on one smooth piece of φ(c), ψ(c), H - y, sin φ and sin ψ
             # are linear in y to O(step²) << NEWTON_RTOL·Δγ: update them linearly.
             c_new = c * (1.0 + step * (1.0 + 0.5 * step))
-            _, _, phi_c_new, psi_c_new = friction_angles(c_new, prm[2], prm[3], prm[4], prm[5],
-                                                         prm[6], prm[7])
+            _, _, phi_c_new, psi_c_new = tier1_angles(c_new, prm)
             if lo <= c_new <= hi and phi_c_new == phi_c and psi_c_new == psi_c:
                 sphi += sphi_y * step
                 spsi += spsi_y * step
@@ -433,11 +442,11 @@ def _tier1_point(i, stress_n, state_n, dstrain, dspin, prm, sin_phi_star, stress
 @njit(cache=True, parallel=True, error_model="numpy")
 def update_points_tier1(stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status):
     """Tier 1 update of every point (layout of ``prm``: module doc). Writes the outputs."""
-    sin_phi_star = np.sin(prm[2])
+    sin_phi_star = np.sin(prm[PHI_STAR])
     for i in prange(stress_n.shape[0]):
         if _inputs_finite(stress_n, state_n, dstrain, dspin, i):
             _tier1_point(i, stress_n, state_n, dstrain, dspin, prm, sin_phi_star, stress, state,
                          tangent, status)
         else:
             status[i] = STATUS_FAILED
-        _finish(stress_n, state_n, stress, state, tangent, status, i, prm[0], prm[1])
+        _finish(stress_n, state_n, stress, state, tangent, status, i, prm[BULK], prm[SHEAR])

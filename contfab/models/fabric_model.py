@@ -133,6 +133,8 @@ from contfab.models.slip_planes import (N_P, N_PL, N_YF, PL_DT, PL_H, PL_HP, PL_
                                         YF_TRS, arc_maxima, arc_u, fabric_terms,
                                         fabric_terms_jacobian, single_maximum, stress_frame,
                                         yield_and_flow, yield_value)
+from contfab.params import (A2, A_CRIT, B2, B_RATIO_CRIT, BULK, FABRIC_LAW, K_C, K_O, KAPPA_A,
+                            N_SEARCH, RELAX_RATE, SHARPNESS, SHEAR)
 from contfab.tensors import hypot, isotropic_stiffness_into, rotate
 
 STATUS_PROJECTED = 3
@@ -283,7 +285,8 @@ def _residual(x, c_n, qn, prm, search, sc, s_ref):
         return np.inf, False
     fab = fabric_terms(x[4], x[5], x[6], x[7], prm, sc.dpz)
     yf = sc.yfs[0]
-    yield_and_flow(x[0], x[1], x[2], fab, prm[16], search, 0, sc.v[V_THETA], sc.planes[0:2], yf)
+    yield_and_flow(x[0], x[1], x[2], fab, prm[SHARPNESS], search, 0, sc.v[V_THETA],
+                   sc.planes[0:2], yf)
     return _assemble(x, c_n, qn, prm, yf, sc, s_ref, sc.v[V_RES], sc.jac)
 
 
@@ -292,8 +295,8 @@ def _assemble(x, c_n, qn, prm, yf, sc, s_ref, res, jac):
     """The step's residuals (:func:`_residual`) at x into ``res[:8]`` and their Jacobian in
     x[:8] into ``jac[:8, :8]``, from the yield/flow terms ``yf``; (max |res[:8]|, whether Φ
     had to be projected)."""
-    bulk = prm[0]
-    shear = prm[1]
+    bulk = prm[BULK]
+    shear = prm[SHEAR]
     dgam = x[3]
     c = x[4]
     fq = sc.v[V_FQ]
@@ -301,8 +304,8 @@ def _assemble(x, c_n, qn, prm, yf, sc, s_ref, res, jac):
     n1 = yf[YF_N + 1]
     n2 = yf[YF_N + 2]
     projected = fabric_step(qn[0], qn[1], qn[2], dgam * n0, dgam * n1, dgam * n2, c,
-                            int(prm[18]), prm[19], prm[20], prm[21], prm[22], prm[23], prm[24],
-                            fq, sc.dq, sc.ws)
+                            int(prm[FABRIC_LAW]), prm[KAPPA_A], prm[K_C], prm[K_O],
+                            prm[A_CRIT], prm[B_RATIO_CRIT], prm[RELAX_RATE], fq, sc.dq, sc.ws)
     cn0 = (bulk + shear) * n0 + (bulk - shear) * n1
     cn1 = (bulk - shear) * n0 + (bulk + shear) * n1
     cn2 = shear * n2
@@ -383,8 +386,8 @@ def _initial_guess(c_n, qn, prm, sc, planes):
     """Tier 1's closed-form coaxial return with the isotropic part of φ(θ), ψ(θ) at c_n and
     the fabric at its start value; with ``planes`` also the planes at tier 1's
     θ = α ± (π/4 - φ/2)."""
-    bulk = prm[0]
-    shear = prm[1]
+    bulk = prm[BULK]
+    shear = prm[SHEAR]
     ttr = sc.v[V_TTR]
     x = sc.v[V_X]
     phi0, _, _, psi0, _, _, _, _, phi_lo, phi_hi = fabric_terms(c_n, qn[0], qn[1], qn[2], prm,
@@ -443,14 +446,14 @@ def _cutting_plane_guess(c_n, qn, fab, prm, sc, hardening, have_terms):
     planes untouched); False (the unknowns untouched) where ∂f/∂σ · C N <= 0. With
     ``have_terms`` the yield/flow terms at σ_tr and the planes are already in ``sc.yfs[0]``
     and ``sc.planes[0:2]`` (:func:`_trial_yield`)."""
-    bulk = prm[0]
-    shear = prm[1]
+    bulk = prm[BULK]
+    shear = prm[SHEAR]
     ttr = sc.v[V_TTR]
     x = sc.v[V_X]
     yf = sc.yfs[0]
     fq = sc.v[V_FQ]
     if not have_terms:
-        yield_and_flow(ttr[0], ttr[1], ttr[2], fab, prm[16], False, 0, sc.v[V_THETA],
+        yield_and_flow(ttr[0], ttr[1], ttr[2], fab, prm[SHARPNESS], False, 0, sc.v[V_THETA],
                        sc.planes[0:2], yf)
     n0 = yf[YF_N]
     n1 = yf[YF_N + 1]
@@ -472,10 +475,10 @@ def _cutting_plane_guess(c_n, qn, fab, prm, sc, hardening, have_terms):
         x[6] = qn[1]
         x[7] = qn[2]
         return True
-    law = int(prm[18])
+    law = int(prm[FABRIC_LAW])
     fabric_step(qn[0], qn[1], qn[2], dgam * n0, dgam * n1, dgam * n2,
-                c_n * np.exp(-dgam * yf[YF_TR]), law, prm[19], prm[20], prm[21], prm[22],
-                prm[23], prm[24], fq, sc.dq, sc.ws)
+                c_n * np.exp(-dgam * yf[YF_TR]), law, prm[KAPPA_A], prm[K_C], prm[K_O],
+                prm[A_CRIT], prm[B_RATIO_CRIT], prm[RELAX_RATE], fq, sc.dq, sc.ws)
     # ∂f/∂z · ∂z/∂Δγ, z = (c, A, Bc, Bs), through the angle coefficients p (∂p/∂z = sc.dpz);
     # the fabric's secant slope in row V_X0.
     slope = sc.v[V_X0]
@@ -522,7 +525,8 @@ def _cutting_plane_guess(c_n, qn, fab, prm, sc, hardening, have_terms):
         dgam = yf[YF_F] / den
     c = c_n * np.exp(-dgam * nn[3])
     fabric_step(qn[0], qn[1], qn[2], dgam * nn[0], dgam * nn[1], dgam * nn[2], c, law,
-                prm[19], prm[20], prm[21], prm[22], prm[23], prm[24], fq, sc.dq, sc.ws)
+                prm[KAPPA_A], prm[K_C], prm[K_O], prm[A_CRIT], prm[B_RATIO_CRIT], prm[RELAX_RATE],
+                fq, sc.dq, sc.ws)
     # The planes follow to first order: θ_k + θ_σ·Δσ + θ_p·Δp (slip_planes.plane_terms).
     theta = sc.v[V_THETA]
     for k in range(2):
@@ -572,16 +576,16 @@ def _ridge_residual(x, k, c_n, qn, prm, sc, s_ref):
     yfb = sc.yfs[2]
     pa = sc.planes[0:2]
     pb = sc.planes[2:4]
-    yield_and_flow(x[0], x[1], x[2], fab, prm[16], False, 0, sc.v[V_THETA], pa, yfa)
-    yield_and_flow(x[0], x[1], x[2], fab, prm[16], False, 0, sc.v[V_THB], pb, yfb)
+    yield_and_flow(x[0], x[1], x[2], fab, prm[SHARPNESS], False, 0, sc.v[V_THETA], pa, yfa)
+    yield_and_flow(x[0], x[1], x[2], fab, prm[SHARPNESS], False, 0, sc.v[V_THB], pb, yfb)
     lam = x[8]
     for i in range(N_YF):
         yf[i] = lam * yfa[i] + (1.0 - lam) * yfb[i]
     res = sc.v[V_RESR]
     jac = sc.jacr
     worst, projected = _assemble(x, c_n, qn, prm, yf, sc, s_ref, res, jac)
-    bulk = prm[0]
-    shear = prm[1]
+    bulk = prm[BULK]
+    shear = prm[SHEAR]
     dgam = x[3]
     inv = 1.0 / s_ref
     dq = sc.dq
@@ -705,7 +709,7 @@ def _planes_are_maxima(prm, sc):
     searched = sc.v[V_DTH]
     searched[0] = sc.v[V_THETA][0]
     searched[1] = sc.v[V_THETA][1]
-    f = yield_value(x[0], x[1], x[2], fab, prm[16], int(prm[17]), searched)
+    f = yield_value(x[0], x[1], x[2], fab, prm[SHARPNESS], int(prm[N_SEARCH]), searched)
     s = hypot(0.5 * (x[0] + x[1]), hypot(0.5 * (x[0] - x[1]), x[2]))
     return abs(f) <= YIELD_TOL * s
 
@@ -730,7 +734,7 @@ def _resolved(prm, sc, s_ref):
     searched[0] = sc.v[V_THETA][0]
     searched[1] = sc.v[V_THETA][1]
     fab = fabric_terms(x[4], x[5], x[6], x[7], prm, sc.dpz)
-    f = yield_value(x[0], x[1], x[2], fab, prm[16], int(prm[17]), searched)
+    f = yield_value(x[0], x[1], x[2], fab, prm[SHARPNESS], int(prm[N_SEARCH]), searched)
     return abs(f) <= YIELD_TOL * s
 
 
@@ -923,7 +927,7 @@ def _unit_face(alpha, fab, prm, sc, rho):
     sa = np.sin(2.0 * alpha)
     theta = sc.v[V_THETA]
     yf = sc.yfs[0]
-    n_search = int(prm[17])
+    n_search = int(prm[N_SEARCH])
     lo = 0.0
     hi = 1.0
     for _ in range(SCAN_MAXIT):
@@ -931,7 +935,8 @@ def _unit_face(alpha, fab, prm, sc, rho):
             theta[0] = alpha + 0.25 * np.pi - 0.5 * fab[0]
             theta[1] = alpha - 0.25 * np.pi + 0.5 * fab[0]
         s = _unit_stress(alpha, rho)
-        yield_and_flow(s[0], s[1], s[2], fab, prm[16], True, n_search, theta, sc.planes[0:2], yf)
+        yield_and_flow(s[0], s[1], s[2], fab, prm[SHARPNESS], True, n_search, theta,
+                       sc.planes[0:2], yf)
         f = yf[YF_F]
         if f > 0.0:
             hi = rho
@@ -990,7 +995,7 @@ def _wedge(alpha, fab, prm, sc, rho, s_ref):
     rho = _unit_face(alpha, fab, prm, sc, rho)
     t = _unit_trial(sc, s_ref)
     a = _unit_stress(alpha, rho)
-    b = _flow_stress(sc.yfs[0], prm[0], prm[1])
+    b = _flow_stress(sc.yfs[0], prm[BULK], prm[SHEAR])
     n = _cross(a, b)
     nn = _dot(n, n)
     if not nn > 0.0:
@@ -1049,9 +1054,9 @@ def _bracket_root(a, b, ga, gb, fab, prm, sc, rho, s_ref):
         return m, p, dgam, rho
     t = _unit_trial(sc, s_ref)
     rho = _unit_face(lo, fab, prm, sc, rho)
-    b_lo = _flow_stress(sc.yfs[0], prm[0], prm[1])
+    b_lo = _flow_stress(sc.yfs[0], prm[BULK], prm[SHEAR])
     rho = _unit_face(hi, fab, prm, sc, rho)
-    b_hi = _flow_stress(sc.yfs[0], prm[0], prm[1])
+    b_hi = _flow_stress(sc.yfs[0], prm[BULK], prm[SHEAR])
     s = _unit_stress(hi, rho)
     w = _cross(b_lo, b_hi)
     det = _dot(s, w)
@@ -1078,14 +1083,14 @@ def _scan_face(a, b, m, p, dgam, rho, c_n, qn, z, prm, sc, s_ref):
     x = sc.v[V_X]
     theta = sc.v[V_THETA]
     fq = sc.v[V_FQ]
-    law = int(prm[18])
+    law = int(prm[FABRIC_LAW])
     theta_root = (theta[0], theta[1])
     for _ in range(SCAN_STATE_MAXIT):
         yf = sc.yfs[0]
         c1 = c_n * np.exp(-dgam * yf[YF_TR])
         fabric_step(qn[0], qn[1], qn[2], dgam * yf[YF_N], dgam * yf[YF_N + 1],
-                    dgam * yf[YF_N + 2], c1, law, prm[19], prm[20], prm[21], prm[22], prm[23],
-                    prm[24], fq, sc.dq, sc.ws)
+                    dgam * yf[YF_N + 2], c1, law, prm[KAPPA_A], prm[K_C], prm[K_O],
+                    prm[A_CRIT], prm[B_RATIO_CRIT], prm[RELAX_RATE], fq, sc.dq, sc.ws)
         change = max(abs(c1 - z[0]), abs(fq[0] - z[1]), abs(fq[1] - z[2]), abs(fq[2] - z[3]))
         z = (c1, fq[0], fq[1], fq[2])
         if change <= SCAN_STATE_TOL:
@@ -1169,10 +1174,10 @@ def _scan_return(c_n, qn, c_apex, prm, sc, s_ref):
     """
     fq = sc.v[V_FQ]
     ttr = sc.v[V_TTR]
-    law = int(prm[18])
-    pxx, pyy, pgg = _elastic_strain(ttr[0], ttr[1], ttr[2], prm[0], prm[1])
-    fabric_step(qn[0], qn[1], qn[2], pxx, pyy, pgg, c_apex, law, prm[19], prm[20], prm[21],
-                prm[22], prm[23], prm[24], fq, sc.dq, sc.ws)
+    law = int(prm[FABRIC_LAW])
+    pxx, pyy, pgg = _elastic_strain(ttr[0], ttr[1], ttr[2], prm[BULK], prm[SHEAR])
+    fabric_step(qn[0], qn[1], qn[2], pxx, pyy, pgg, c_apex, law, prm[KAPPA_A], prm[K_C], prm[K_O],
+                prm[A_CRIT], prm[B_RATIO_CRIT], prm[RELAX_RATE], fq, sc.dq, sc.ws)
     apex_state = (c_apex, fq[0], fq[1], fq[2])
     fab0 = fabric_terms(c_apex, fq[0], fq[1], fq[2], prm, sc.dpz)
     beyond = False
@@ -1232,12 +1237,12 @@ def _trial_yield(fab, prm, n_search, sc):
             arc_maxima(m, r, ca, sa, np.arctan2(sa, ca), fab, n_search, 1, theta, True)
             yf = sc.yfs[0]
             pl = sc.planes[0:2]
-            yield_and_flow(ttr[0], ttr[1], ttr[2], fab, prm[16], False, 0, theta, pl, yf)
+            yield_and_flow(ttr[0], ttr[1], ttr[2], fab, prm[SHARPNESS], False, 0, theta, pl, yf)
             dt = max(abs(pl[0, PL_DT]), abs(pl[1, PL_DT]))
             if (dt <= PREDICTED_PLANE_STEP
                     and abs(yf[YF_F]) > (PREDICTED_F_GAP + 50.0 * dt * dt) * hypot(m, r)):
                 return yf[YF_F], True
-    return yield_value(ttr[0], ttr[1], ttr[2], fab, prm[16], n_search, theta), False
+    return yield_value(ttr[0], ttr[1], ttr[2], fab, prm[SHARPNESS], n_search, theta), False
 
 
 @njit(**KERNEL)
@@ -1268,8 +1273,8 @@ def _tangent(lu, piv, rhs, n, bulk, shear, s_ref, tangent, i):
 
 @njit(**KERNEL)
 def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status, sc):
-    bulk = prm[0]
-    shear = prm[1]
+    bulk = prm[BULK]
+    shear = prm[SHEAR]
     c_n = state_n[i, 1]
     if not (0.0 < c_n < 1.0):
         status[i] = STATUS_FAILED
@@ -1284,7 +1289,7 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
     ttr[0] = rxx + (bulk + shear) * dexx + (bulk - shear) * deyy
     ttr[1] = ryy + (bulk - shear) * dexx + (bulk + shear) * deyy
     ttr[2] = rxy + shear * dgxy
-    n_search = int(prm[17])
+    n_search = int(prm[N_SEARCH])
     if n_search == 0:        # the tier-1 planes are the plane search's warm start
         _initial_guess(c_n, (q0, bc, bs), prm, sc, True)
     fab = fabric_terms(c_n, q0, bc, bs, prm, sc.dpz)
@@ -1320,7 +1325,7 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
     if not apex and shear * p_tr <= bulk * r_tr:
         spsi_iso = _isotropic_dilatancy(c_apex, q0, bc, bs, prm, sc.dpz)
         if shear * p_tr + bulk * spsi_iso * r_tr <= 0.0:
-            apex = prm[10] == 0.0 and prm[14] == 0.0
+            apex = prm[A2] == 0.0 and prm[B2] == 0.0
             scan = not apex
     if not (apex or scan):
         # Near the surface (the common case in a converging global iteration) one cutting-
@@ -1359,9 +1364,9 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
         # fabric law at the final (Δεp, c): the returned state satisfies both exactly.
         pxx, pyy, pgg = _elastic_strain(ttr[0] - x[0], ttr[1] - x[1], ttr[2] - x[2], bulk,
                                         shear)
-        projected = fabric_step(q0, bc, bs, pxx, pyy, pgg, c1, int(prm[18]), prm[19],
-                                prm[20], prm[21], prm[22], prm[23], prm[24], sc.v[V_FQ], sc.dq,
-                                sc.ws)
+        projected = fabric_step(q0, bc, bs, pxx, pyy, pgg, c1, int(prm[FABRIC_LAW]), prm[KAPPA_A],
+                                prm[K_C], prm[K_O], prm[A_CRIT], prm[B_RATIO_CRIT],
+                                prm[RELAX_RATE], sc.v[V_FQ], sc.dq, sc.ws)
         # Tangent: solve J X = [C/s_ref; 0], column by column (J of the ridge return there).
         if ridge:
             _tangent(sc.jacr, sc.piv[1], sc.rhs, N_XR, bulk, shear, s_ref, tangent, i)
@@ -1373,8 +1378,9 @@ def _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, st
         tangent[i, :, :] = 0.0
         pxx, pyy, pgg = _elastic_strain(ttr[0], ttr[1], ttr[2], bulk, shear)
         c1 = c_apex
-        projected = fabric_step(q0, bc, bs, pxx, pyy, pgg, c1, int(prm[18]), prm[19], prm[20],
-                                prm[21], prm[22], prm[23], prm[24], sc.v[V_FQ], sc.dq, sc.ws)
+        projected = fabric_step(q0, bc, bs, pxx, pyy, pgg, c1, int(prm[FABRIC_LAW]), prm[KAPPA_A],
+                                prm[K_C], prm[K_O], prm[A_CRIT], prm[B_RATIO_CRIT],
+                                prm[RELAX_RATE], sc.v[V_FQ], sc.dq, sc.ws)
         status[i] = STATUS_APEX
     else:
         status[i] = STATUS_FAILED
@@ -1400,7 +1406,7 @@ def _update_range(lo, hi, stress_n, state_n, dstrain, dspin, prm, stress, state,
             _point(i, stress_n, state_n, dstrain, dspin, prm, stress, state, tangent, status, sc)
         else:
             status[i] = STATUS_FAILED
-        _finish(stress_n, state_n, stress, state, tangent, status, i, prm[0], prm[1])
+        _finish(stress_n, state_n, stress, state, tangent, status, i, prm[BULK], prm[SHEAR])
 
 
 @njit(cache=True, parallel=True, error_model="numpy")

@@ -70,6 +70,8 @@ import numpy as np
 from numba import njit
 
 from contfab.jit_flags import KERNEL
+from contfab.params import (A0, A1, A2, A3, B0, B1, B2, B3, C_STAR, DPHI_DC, DPSI_DC, PHI_MAX,
+                            PHI_MIN)
 from contfab.tensors import hypot
 
 # The six angle coefficients p = (φ0, pc, ps, ψ0, qc, qs) of φ(θ) = φ0 + pc cos 2θ + ps sin 2θ
@@ -582,11 +584,11 @@ def plane_terms(cu, su, c2, s2, g, m, r, ca, sa, fab, pl, k):
 def fabric_terms_jacobian(prm, out):
     """``out`` (6, 4) ← ∂p/∂(c, A, Bc, Bs) of :func:`fabric_terms` (constant: p is affine)."""
     out[:, :] = 0.0
-    out[0, 0] = prm[3]
-    out[3, 0] = prm[4]
-    out[0, 1] = prm[9]
-    out[3, 1] = prm[13]
-    for row, amp, ang in ((1, prm[10], prm[11]), (4, prm[14], prm[15])):
+    out[0, 0] = prm[DPHI_DC]
+    out[3, 0] = prm[DPSI_DC]
+    out[0, 1] = prm[A1]
+    out[3, 1] = prm[B1]
+    for row, amp, ang in ((1, prm[A2], prm[A3]), (4, prm[B2], prm[B3])):
         out[row, 2] = amp * np.cos(ang)          # pc = amp (Bc cos a + Bs sin a)
         out[row, 3] = amp * np.sin(ang)
         out[row + 1, 2] = -amp * np.sin(ang)     # ps = amp (Bs cos a - Bc sin a)
@@ -603,14 +605,14 @@ def fabric_terms(c, a, bc, bs, prm, dpz):
     p is affine in (c, A, Bc, Bs) with the constant Jacobian ``dpz`` of
     :func:`fabric_terms_jacobian` (which holds the trigonometry of a3, b3, done once).
     """
-    dc = c - prm[5]
-    phi0 = prm[8] + dpz[0, 0] * dc + dpz[0, 1] * a
-    psi0 = prm[12] + dpz[3, 0] * dc + dpz[3, 1] * a
+    dc = c - prm[C_STAR]
+    phi0 = prm[A0] + dpz[0, 0] * dc + dpz[0, 1] * a
+    psi0 = prm[B0] + dpz[3, 0] * dc + dpz[3, 1] * a
     pc = dpz[1, 2] * bc + dpz[1, 3] * bs
     ps = dpz[2, 2] * bc + dpz[2, 3] * bs
     qc = dpz[4, 2] * bc + dpz[4, 3] * bs
     qs = dpz[5, 2] * bc + dpz[5, 3] * bs
-    return phi0, pc, ps, psi0, qc, qs, hypot(pc, ps), prm[4], prm[6], prm[7]
+    return phi0, pc, ps, psi0, qc, qs, hypot(pc, ps), prm[DPSI_DC], prm[PHI_MIN], prm[PHI_MAX]
 
 
 @njit(**KERNEL)

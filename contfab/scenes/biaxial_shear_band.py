@@ -44,7 +44,7 @@ from contfab.fem.output import plot_field
 from contfab.fem.material import TierMaterial
 from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver, Stage
 from contfab.material_point import run_path
-from contfab.models.cone import friction_angles
+from contfab.models.cone import tier1_angles
 from contfab.params import ParamError, default_params, load_params
 
 DESCRIPTION = "dense biaxial specimen, rough platens: peak, softening, shear-band angle"
@@ -151,7 +151,7 @@ def solve(params, element: str, level: int, dense: float, strain: float, out: Pa
     gp = [g for tt, g in gp_marks if tt >= 0.9 * t[-1]]
     dgp = disc.element_mean(solver.committed.state[:, 0] - gp[0])
     c0 = c_star + dense
-    phi, psi, _, _ = friction_angles(c0, *(params.array(1)[2:]))
+    phi, psi, _, _ = tier1_angles(c0, params.array(1))
     return {"peak": float(ratio.max()), "peak_strain": float(result.column("axial_strain")[np.argmax(ratio)]),
             "end": float(ratio[-1]), "angle": math.nan if homogeneous else band_angle(disc, dgp),
             "curve": {k: result.column(k) for k in ("axial_strain", "stress_ratio", "sin_phi_mob")},

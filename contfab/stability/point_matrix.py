@@ -69,7 +69,7 @@ def step_invariants(tier: int, prm: Params, stress_n, state_n, dstrain, dspin, r
         out["yield"] = float(np.max(np.maximum(r - sphi * p, 0.0) / (size + 1e-300)))
     elif tier == 1:
         a = prm.array(1)
-        sphi = np.array([math.sin(cone.friction_angles(c, *a[2:])[0]) for c in res.state[:, 1]])
+        sphi = np.array([math.sin(cone.tier1_angles(c, a)[0]) for c in res.state[:, 1]])
         out["yield"] = float(np.max(np.maximum(r - sphi * p, 0.0) / (size + 1e-300)))
     if tier >= 1:
         c = res.state[:, 1]
@@ -127,7 +127,7 @@ def cone_stresses(prm: Params, tier: int, state, rng, p_scale=1.0, inside=(0.5, 
         sphi = np.full(n, math.sin(math.radians(prm.tier0.phi_deg)))
     else:
         a = prm.array(1)
-        sphi = np.array([math.sin(cone.friction_angles(c, *a[2:])[0]) for c in state[:, 1]])
+        sphi = np.array([math.sin(cone.tier1_angles(c, a)[0]) for c in state[:, 1]])
     p = p_scale * rng.uniform(0.5, 1.5, n)
     r = p * sphi * rng.uniform(*inside, n)
     two = rng.uniform(0, 2 * np.pi, n)
@@ -247,7 +247,7 @@ def run_path_check(tier: int, prm: Params, path, increment: float = 1e-2, state0
         if tier == 0:
             sphi = math.sin(math.radians(prm.tier0.phi_deg))
         else:
-            sphi = math.sin(cone.friction_angles(res["c_p"][-1], *prm.array(1)[2:])[0])
+            sphi = math.sin(cone.tier1_angles(res["c_p"][-1], prm.array(1))[0])
         cone_err = abs(res["R"][-1] - sphi * res["P"][-1]) / res["P"][-1]
         err = max(err, cone_err)
         notes.append(f"end R/P - sin(phi) = {cone_err:.2g}")
