@@ -69,7 +69,11 @@ def _dem_settings_args(p: argparse.ArgumentParser) -> None:
                         "Q, number fraction F of small discs); default uniform:0.2")
     p.add_argument("--mu", type=float, help="test friction (default 0.5)")
     p.add_argument("--mu-prep", type=float,
-                   help="preparation friction (default: --mu; 0 gives a dense sample)")
+                   help="preparation friction, a packing knob (default: --mu; 0: dense; above "
+                        "--mu: looser, see docs/dem_validation.md)")
+    p.add_argument("--prep-rate", type=float,
+                   help="strain-rate cap of the preparation's compression, a packing knob "
+                        "(default 1e-2; slower: looser with friction)")
     p.add_argument("--kappa", type=float, help="stiffness number kn/P0 (default 1e4)")
     p.add_argument("--inertial", type=float,
                    help="inertial number I setting the reference strain rate (default 1e-3)")
@@ -89,8 +93,8 @@ def _dem_settings_args(p: argparse.ArgumentParser) -> None:
                         "dem/threads.py)")
 
 
-DEM_SETTINGS = ("n", "seed", "radii", "kappa", "mu", "mu_prep", "inertial", "e", "kt_ratio",
-                "mu_roll", "dt_fraction", "prep_max_steps", "allow_unrelaxed",
+DEM_SETTINGS = ("n", "seed", "radii", "kappa", "mu", "mu_prep", "prep_rate", "inertial", "e",
+                "kt_ratio", "mu_roll", "dt_fraction", "prep_max_steps", "allow_unrelaxed",
                 "checkpoint_every")
 
 

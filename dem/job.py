@@ -44,8 +44,14 @@ from dem.servo import L_MAX_FACTOR
 from dem.particles import parse_radii, sample_radii
 from dem.paths import load_path
 from dem.provenance import code_versions
-from dem.prepare import CHECK_EVERY, PreparationError, compress_to_pressure, random_gas, switch_friction
+from dem.prepare import (CHECK_EVERY, PreparationError, compress_to_pressure, lower_friction,
+                         random_gas, switch_friction)
 from dem.rve import PathRunner, history_table
+
+
+LOOSE = {"mu_prep": 10.0, "prep_rate": 1e-3}
+"""The loosest preparation measured (docs/dem_validation.md, "Packing fraction"): a slow
+compression with a high friction, lowered to the test friction at P0."""
 
 
 @dataclass(frozen=True)
@@ -57,7 +63,7 @@ class Settings:
     radii: str = "uniform:0.2"
     kappa: float = 1e4
     mu: float = 0.5
-    mu_prep: float | None = None        # None: same as mu (a loose sample)
+    mu_prep: float | None = None        # None: same as mu; the packing knob (dem.prepare)
     inertial: float = 1e-3
     e: float = 0.5
     kt_ratio: float = 0.5
@@ -109,6 +115,10 @@ def prepare_sample(settings: Settings, progress: bool = True):
     bar = _bar(progress, None, "prepare (steps)")
     state, info = compress_to_pressure(state, dyn_prep, max_steps=settings.prep_max_steps,
                                        progress=_prep_progress(bar))
+    if mu_prep > settings.mu and info.relaxed:
+        state, info = lower_friction(state, dyn_prep, settings.law(), info,
+                                     max_steps=settings.prep_max_steps,
+                                     progress=_prep_progress(bar))
     if bar is not None:
         bar.close()
     if not info.relaxed:
@@ -306,6 +316,8 @@ def _prep_progress(bar):
     last = [0]
 
     def update(info):
+        if info.steps < last[0]:             # a new preparation stage counts from 0
+            last[0] = 0
         bar.update(info.steps - last[0])
         last[0] = info.steps
         bar.set_postfix(c=f"{info.c:.4f}", P=f"{info.P:.3f}", f_unb=f"{info.unbalanced:.1e}")
