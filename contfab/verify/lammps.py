@@ -2,7 +2,7 @@
 
 For each seed and kind (dense, loose) one sample is prepared by the DEM
 (:func:`dem.job.prepare_sample`: diameters uniform in [0.8, 1.2], μ = 0.5, kt/kn = 0.5,
-e = 0.55, κ as given); its tangential histories are set to zero, and the same state
+e = 0.55, κ as given; dense: μ_prep = 0, loose: :data:`dem.job.LOOSE`); its tangential histories are set to zero, and the same state
 (positions, velocities, spins, cell) is loaded into both engines
 (:mod:`contfab.verify.lammps_engine`). Both then compress it biaxially along y at the
 strain rate γ̇ = I (true strain rate) with σxx held at -P0 (the DEM by its servo, LAMMPS
@@ -33,7 +33,7 @@ from dem.measure import Contacts
 
 RESIDUAL_WINDOW = (0.20, 0.30)
 SUMMARY = ("peak_RP", "peak_strain", "RP", "c", "eps_v", "z", "z_no_rattlers", "BA",
-           "sliding_fraction")
+           "sliding_fraction", "sliding_strict")
 CURVE_COLUMNS = ("engine", "kind", "seed", "step", "eps_xx", "eps_yy", "eps_v") + MEASURES
 
 
@@ -170,8 +170,10 @@ def compare(out, n: int = 1000, seeds=(1, 2, 3), kinds=("dense", "loose"), kappa
             strain: float = 0.3, rows: int = 150, inertial: float = 1e-3,
             gamma_t: str = "half", loose: dict | None = None, progress=None) -> dict:
     """Run the comparison (module doc); returns {what: file written} and the table."""
+    from dem.job import LOOSE
+
     out = FsPath(out)
-    loose = {"mu_prep": 0.5} if loose is None else loose
+    loose = LOOSE if loose is None else loose
     curves, summaries = [], []
     for kind in kinds:
         for seed in seeds:
