@@ -234,10 +234,12 @@ def run_job(path_name: str, settings: Settings, out_dir: str | FsPath, resume: s
     if resume is not None:
         state, dyn, run, saved = checkpoint.load(resume)
         prep = saved.get("preparation")
-        if run is not None and saved.get("path") not in (None, json.loads(json.dumps(path.to_dict()))):
+        continues = run is not None and len(path.expand()) == 1
+        if continues and saved.get("path") not in (None, json.loads(json.dumps(path.to_dict()))):
             raise ValueError(f"--resume {resume}: path {path.name!r} differs from the "
                              f"checkpoint's path {saved['path'].get('name')!r}; accepted: the "
-                             f"checkpoint's path (a mid-run checkpoint continues its own path)")
+                             f"checkpoint's path (a mid-run checkpoint continues its own path; "
+                             f"a probe family starts afresh on its state)")
         ran = resumed_settings(resume, saved.get("settings", {}), state, dyn, run is not None,
                                _given(settings) if given is None else given)
         for w in preparation_warnings(prep):

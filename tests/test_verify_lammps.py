@@ -54,3 +54,18 @@ def test_bad_settings_are_refused_before_anything_runs(tmp_path, capsys):
     assert main(["verify", "lammps", "--out", str(tmp_path / "v"), "--strain", "0.9"]) == 2
     assert "strain = 0.9" in capsys.readouterr().err
     assert not (tmp_path / "v").exists()
+
+
+@pytest.mark.slow
+def test_dense_biaxial_agrees_with_lammps_within_the_seed_scatter(tmp_path):
+    """N = 1000, seeds 1-3, dense, to 25 % (docs/dem_lammps.md: about 10 CPU-minutes)."""
+    _lammps_or_skip()
+    from contfab.verify.lammps import compare
+
+    res = compare(tmp_path, n=1000, seeds=(1, 2, 3), kinds=("dense",), strain=0.25, rows=100)
+    t = res["table"]["dense"]
+    for q in ("peak_RP", "RP", "c", "z", "z_no_rattlers", "BA"):
+        assert t[q]["within_scatter"], (q, t[q])
+    # both dense samples dilate and reach R/P of a granular residual state
+    for eng in ("dem", "lammps"):
+        assert t["eps_v"][eng]["mean"] > 0.02 and 0.2 < t["RP"][eng]["mean"] < 0.3
