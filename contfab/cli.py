@@ -280,7 +280,7 @@ def _add_compare(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=1, help="DEM sample seed (default 1)")
     p.add_argument("--kappa", type=float, default=1e3, help="stiffness number kn/P0 (default 1e3)")
     p.add_argument("--density", choices=("dense", "loose"), default="dense",
-                   help="dense (mu_prep = 0) or loose (mu_prep = mu) sample (default dense)")
+                   help="dense (mu_prep = 0) or loose (dem.job.LOOSE) sample (default dense)")
 
 
 def _run_compare(args) -> None:

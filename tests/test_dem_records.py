@@ -6,14 +6,8 @@ import pytest
 
 from contfab.cli import main
 from dem.job import UnrelaxedWarning
+from test_dem_cli import SHORT
 
-SHORT = """name = "short"
-[[stage]]
-length = 0.004
-output_every = 0.001
-L = { yy = -1.0, xy = 0.0, yx = 0.0 }
-sigma = { xx = -1.0 }
-"""
 SAMPLE = ["--n", "60", "--kappa", "1e3", "--mu", "0.4", "--seed", "3", "--inertial", "1e-2"]
 
 
