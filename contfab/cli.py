@@ -169,20 +169,27 @@ def _add_verify(p: argparse.ArgumentParser) -> None:
                      help="LAMMPS tangential dashpot: gamma_t = gamma_n/2 (default) or none")
 
 
-def _run_verify(args) -> None:
+def _run_verify(args) -> int:
+    from contfab.bench.dem_lammps import LammpsUnavailable
     from contfab.verify.lammps import check_settings, compare
 
     check_settings(args.n, args.seeds, args.strain, args.rows)
-    res = compare(args.out, n=args.n, seeds=tuple(args.seeds), kinds=tuple(args.kinds),
-                  kappa=args.kappa, strain=args.strain, rows=args.rows,
-                  inertial=args.inertial, gamma_t=args.gamma_t,
-                  progress=lambda kind, seed: print(f"  {kind} seed {seed}: done", flush=True))
+    try:
+        res = compare(args.out, n=args.n, seeds=tuple(args.seeds), kinds=tuple(args.kinds),
+                      kappa=args.kappa, strain=args.strain, rows=args.rows,
+                      inertial=args.inertial, gamma_t=args.gamma_t,
+                      progress=lambda kind, seed: print(f"  {kind} seed {seed}: done",
+                                                        flush=True))
+    except LammpsUnavailable as exc:
+        print(f"contfab verify: error: LAMMPS not available: {exc}", file=sys.stderr)
+        return 2
     for kind, t in res["table"].items():
         for q, v in t.items():
             print(f"{kind:>6} {q:>17}: dem {v['dem']['mean']:.4g} ± {v['dem']['sd']:.2g}, "
                   f"lammps {v['lammps']['mean']:.4g} ± {v['lammps']['sd']:.2g}, "
                   f"difference {v['dem_minus_lammps']:+.3g} (2 se {v['two_se']:.2g})")
     _print_written(res["written"])
+    return 0
 
 
 # --------------------------------------------------------------------------- point

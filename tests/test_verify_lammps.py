@@ -69,3 +69,13 @@ def test_dense_biaxial_agrees_with_lammps_within_the_seed_scatter(tmp_path):
     # both dense samples dilate and reach R/P of a granular residual state
     for eng in ("dem", "lammps"):
         assert t["eps_v"][eng]["mean"] > 0.02 and 0.2 < t["RP"][eng]["mean"] < 0.3
+
+
+def test_missing_lammps_is_a_clear_error_before_anything_runs(tmp_path, capsys, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "lammps", None)
+    assert main(["verify", "lammps", "--out", str(tmp_path / "v"), "--n", "40"]) == 2
+    err = capsys.readouterr().err
+    assert "LAMMPS not available" in err and "contfab[bench]" in err and "Traceback" not in err
+    assert not (tmp_path / "v").exists()

@@ -170,8 +170,10 @@ def compare(out, n: int = 1000, seeds=(1, 2, 3), kinds=("dense", "loose"), kappa
             strain: float = 0.3, rows: int = 150, inertial: float = 1e-3,
             gamma_t: str = "half", loose: dict | None = None, progress=None) -> dict:
     """Run the comparison (module doc); returns {what: file written} and the table."""
+    from contfab.bench.dem_lammps import lammps_class
     from dem.job import LOOSE
 
+    lammps_class()                        # LammpsUnavailable before anything runs
     out = FsPath(out)
     loose = LOOSE if loose is None else loose
     curves, summaries = [], []
