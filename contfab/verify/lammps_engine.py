@@ -22,9 +22,8 @@ import tempfile
 
 import numpy as np
 
-from contfab.bench.dem_lammps import lammps_class, normal_damping, write_data
+from contfab.bench.dem_lammps import PDAMP_STEPS, lammps_class, normal_damping, write_data
 
-PDAMP_STEPS = 1000
 GAMMA_T = ("half", "zero")
 
 
