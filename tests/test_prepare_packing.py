@@ -36,3 +36,18 @@ def test_the_loose_protocol_packs_looser_and_the_samples_contract():
     # c0 about 0.002; at N = 1000 the mean difference is 0.006, docs/dem_validation.md)
     assert all(lo < us for lo, us in zip(c_loose, c_usual))
     assert sum(c_loose) / 2 < sum(c_usual) / 2 - 0.002
+
+
+@pytest.mark.slow
+def test_loose_samples_at_realistic_size_start_below_the_usual_and_contract():
+    """N = 1000, κ = 1e3 (docs/dem_validation.md, section 9: c0 0.805 against 0.8115)."""
+    size = dict(BASE, n=1000)
+    gaps = []
+    for seed in (1, 2):
+        _, _, info_u = prepare_sample(Settings(seed=seed, **size), progress=False)
+        loose, dyn, info = prepare_sample(Settings(seed=seed, **size, **LOOSE), progress=False)
+        gaps.append(info_u.c - info.c)
+        assert info.c < 0.807
+        eps_v = [r["eps_v"] for r in _biaxial(loose, dyn, 0.1)[1:]]
+        assert max(eps_v) < 0 and min(eps_v) < -0.004
+    assert min(gaps) > 0 and sum(gaps) / 2 > 0.004
