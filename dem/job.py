@@ -44,7 +44,7 @@ from dem.servo import L_MAX_FACTOR
 from dem.particles import parse_radii, sample_radii
 from dem.paths import load_path
 from dem.provenance import code_versions
-from dem.prepare import (CHECK_EVERY, PreparationError, compress_to_pressure, lower_friction,
+from dem.prepare import (CHECK_EVERY, E_SWITCH, PreparationError, compress_to_pressure, lower_friction,
                          random_gas, switch_friction)
 from dem.rve import PathRunner, history_table
 
@@ -99,8 +99,12 @@ class Settings:
         if not (isinstance(self.checkpoint_every, int) and self.checkpoint_every >= 0):
             raise ValueError(f"checkpoint_every = {self.checkpoint_every} out of range; accepted "
                              f"integers >= 0 (0: only at the end)")
-        # the time step is checked against the stability limit (any mass: dt scales with it)
+        # the time step is checked against the stability limit (any mass: dt scales with it),
+        # also for the damped contacts that relax a friction drop (dem.prepare.lower_friction)
         dynamics(self.law(), 1.0, self.inertial, self.dt_fraction, self.skin)
+        if self.mu_prep is not None and self.mu_prep > self.mu:
+            dynamics(replace(self.law(), e=E_SWITCH), 1.0, self.inertial, self.dt_fraction,
+                     self.skin)
 
 
 def prepare_sample(settings: Settings, progress: bool = True):

@@ -51,3 +51,12 @@ def test_loose_samples_at_realistic_size_start_below_the_usual_and_contract():
         eps_v = [r["eps_v"] for r in _biaxial(loose, dyn, 0.1)[1:]]
         assert max(eps_v) < 0 and min(eps_v) < -0.004
     assert min(gaps) > 0 and sum(gaps) / 2 > 0.004
+
+
+def test_a_time_step_too_large_for_the_friction_drop_is_refused_up_front():
+    from dem.integrator import TimeStepError
+
+    Settings(mu_prep=10.0, dt_fraction=0.1).validate()
+    Settings(mu_prep=0.5, dt_fraction=0.2).validate()        # no friction drop: e = 0.5 only
+    with pytest.raises(TimeStepError, match=r"0.2 .*accepted range \(0, 0.114\d*\] .*e = 0.05"):
+        Settings(mu_prep=10.0, dt_fraction=0.2).validate()
