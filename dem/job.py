@@ -16,12 +16,22 @@ resumes bitwise). Writes into the output directory
 For a probe family each probe runs on its own copy of the start state and writes
 ``history_<k>.csv``. All settings are validated before anything is written, and every
 file is written atomically, so an error leaves no partial file.
+
+Records say what ran. A resumed run runs with the checkpoint's settings
+(:func:`resumed_settings`): a setting given explicitly that differs from the checkpoint's
+is refused, naming both values, except those a resumed run may change
+(:data:`RESUME_FREE`); ``history.json`` records the settings that ran and where they came
+from (``settings_source``). A preparation that hits its step limit unrelaxed is an error
+unless ``allow_unrelaxed`` is set; then it runs with a warning, recorded in the sidecars'
+``warnings``.
 """
 from __future__ import annotations
 
+import json
 import math
 import time
-from dataclasses import asdict, dataclass, replace
+import warnings
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path as FsPath
 
 import numpy as np
@@ -34,8 +44,14 @@ from dem.servo import L_MAX_FACTOR
 from dem.particles import parse_radii, sample_radii
 from dem.paths import load_path
 from dem.provenance import code_versions
-from dem.prepare import compress_to_pressure, random_gas, switch_friction
+from dem.prepare import (CHECK_EVERY, E_SWITCH, PreparationError, compress_to_pressure, lower_friction,
+                         random_gas, switch_friction)
 from dem.rve import PathRunner, history_table
+
+
+LOOSE = {"mu_prep": 10.0, "prep_rate": 1e-3}
+"""The loosest preparation measured (docs/dem_validation.md, "Packing fraction"): a slow
+compression with a high friction, lowered to the test friction at P0."""
 
 
 @dataclass(frozen=True)
@@ -47,7 +63,7 @@ class Settings:
     radii: str = "uniform:0.2"
     kappa: float = 1e4
     mu: float = 0.5
-    mu_prep: float | None = None        # None: same as mu (a loose sample)
+    mu_prep: float | None = None        # None: same as mu; the packing knob (dem.prepare)
     inertial: float = 1e-3
     e: float = 0.5
     kt_ratio: float = 0.5
@@ -57,6 +73,8 @@ class Settings:
     prep_rate: float = 1e-2
     c_gas: float = 0.3
     checkpoint_every: int = 10
+    prep_max_steps: int = 2_000_000
+    allow_unrelaxed: bool = False
 
     def law(self, mu: float | None = None) -> ContactLaw:
         return ContactLaw(kn=self.kappa, kt_ratio=self.kt_ratio, e=self.e,
@@ -75,11 +93,18 @@ class Settings:
                 raise ValueError(f"{name} = {v} out of range; accepted (0, inf)")
         if not (0 < self.c_gas < 0.5):
             raise ValueError(f"c_gas = {self.c_gas} out of range; accepted (0, 0.5)")
+        if not (isinstance(self.prep_max_steps, int) and self.prep_max_steps >= CHECK_EVERY):
+            raise ValueError(f"prep_max_steps = {self.prep_max_steps} out of range; accepted "
+                             f"integers >= {CHECK_EVERY}")
         if not (isinstance(self.checkpoint_every, int) and self.checkpoint_every >= 0):
             raise ValueError(f"checkpoint_every = {self.checkpoint_every} out of range; accepted "
                              f"integers >= 0 (0: only at the end)")
-        # the time step is checked against the stability limit (any mass: dt scales with it)
+        # the time step is checked against the stability limit (any mass: dt scales with it),
+        # also for the damped contacts that relax a friction drop (dem.prepare.lower_friction)
         dynamics(self.law(), 1.0, self.inertial, self.dt_fraction, self.skin)
+        if self.mu_prep is not None and self.mu_prep > self.mu:
+            dynamics(replace(self.law(), e=E_SWITCH), 1.0, self.inertial, self.dt_fraction,
+                     self.skin)
 
 
 def prepare_sample(settings: Settings, progress: bool = True):
@@ -92,16 +117,44 @@ def prepare_sample(settings: Settings, progress: bool = True):
     dyn_prep = dynamics(settings.law(mu_prep), state.mass.min(), settings.prep_rate,
                         settings.dt_fraction, settings.skin, l_max=settings.prep_rate)
     bar = _bar(progress, None, "prepare (steps)")
-    state, info = compress_to_pressure(state, dyn_prep, progress=_prep_progress(bar))
+    state, info = compress_to_pressure(state, dyn_prep, max_steps=settings.prep_max_steps,
+                                       progress=_prep_progress(bar))
+    if mu_prep > settings.mu and info.relaxed:
+        state, info = lower_friction(state, dyn_prep, settings.law(), info,
+                                     max_steps=settings.prep_max_steps,
+                                     progress=_prep_progress(bar))
     if bar is not None:
         bar.close()
-    dyn = replace(switch_friction(dyn_prep, settings.mu), **_rates(settings))
+    if not info.relaxed:
+        what = (f"the preparation did not relax within prep_max_steps = "
+                f"{settings.prep_max_steps} steps (P = {info.P:.4g}, unbalanced force ratio "
+                f"{info.unbalanced:.3g}, kinetic/elastic {info.kinetic_ratio:.3g}; see "
+                f"dem.prepare for the thresholds)")
+        if not settings.allow_unrelaxed:
+            raise PreparationError(f"{what}; accepted: a relaxed sample (raise "
+                                   f"--prep-max-steps), or --allow-unrelaxed to use it anyway")
+        warnings.warn(f"UNRELAXED SAMPLE used (allow_unrelaxed): {what}", UnrelaxedWarning,
+                      stacklevel=2)
+    dyn = replace(switch_friction(dyn_prep, settings.mu), **_rates(settings.inertial))
     return state, dyn, info
 
 
-def _rates(settings: Settings) -> dict:
+class UnrelaxedWarning(UserWarning):
+    """A sample used although its preparation hit the step limit unrelaxed."""
+
+
+def preparation_warnings(prep: dict | None) -> list[str]:
+    """The sidecar's ``warnings`` for a preparation record (empty when it relaxed)."""
+    if prep is None or prep.get("relaxed", True):
+        return []
+    return [f"UNRELAXED PREPARATION: the sample did not meet the relaxation thresholds "
+            f"(stopped after {prep['steps']} steps at P = {prep['P']:.4g}, unbalanced force "
+            f"ratio {prep['unbalanced']:.3g}, kinetic/elastic {prep['kinetic_ratio']:.3g})"]
+
+
+def _rates(inertial: float) -> dict:
     """γ̇_ref = I (DEM units) and the servo's rate cap for the test."""
-    return {"gdot_ref": settings.inertial, "l_max": L_MAX_FACTOR * settings.inertial}
+    return {"gdot_ref": inertial, "l_max": L_MAX_FACTOR * inertial}
 
 
 def prepare_job(settings: Settings, out: str | FsPath, progress: bool = True) -> FsPath:
@@ -109,34 +162,109 @@ def prepare_job(settings: Settings, out: str | FsPath, progress: bool = True) ->
     t0 = time.perf_counter()
     state, dyn, info = prepare_sample(settings, progress)
     meta = {"job": "prepare", "settings": asdict(settings), "preparation": info.to_dict(),
-            "seconds": time.perf_counter() - t0}
+            "warnings": preparation_warnings(info.to_dict()), "seconds": time.perf_counter() - t0}
     out = FsPath(out)
     checkpoint.save(out, state, dyn, None, meta)
     return out
 
 
+RESUME_FREE = {"checkpoint_every": "any", "allow_unrelaxed": "any", "inertial": "prepared"}
+"""Settings a resumed run may change: on any checkpoint ("any"), or only on a prepared
+sample, where the loading path has not started ("prepared")."""
+
+
+def flag(name: str) -> str:
+    """The command-line flag of a setting."""
+    return "--" + name.replace("_", "-")
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, float) or isinstance(b, float):
+        return a is not None and b is not None and math.isclose(a, b, rel_tol=1e-9, abs_tol=0.0)
+    return a == b
+
+
+def resumed_settings(file, saved: dict, state, dyn, mid_run: bool, given: dict) -> dict:
+    """The settings a run resumed from checkpoint ``file`` runs with.
+
+    They are the checkpoint's: its recorded settings (``saved``; None where it records
+    none), with the contact law, n, dt, skin and rate read from the state and dynamics it
+    holds. ``given``: settings set explicitly. Those in :data:`RESUME_FREE` replace the
+    checkpoint's; any other that differs from the checkpoint's value (or that the
+    checkpoint does not record) is refused with a ValueError naming the flag and both
+    values.
+    """
+    law = dyn.law
+    ran = {f.name: saved.get(f.name) for f in fields(Settings)}
+    if "mu" in saved and ran["mu_prep"] is None:
+        ran["mu_prep"] = saved["mu"]
+    ran.update(n=state.n, kappa=law.kn, mu=law.mu, e=law.e, kt_ratio=law.kt_ratio,
+               mu_roll=law.mu_roll, skin=dyn.skin, inertial=dyn.gdot_ref)
+    ran["allow_unrelaxed"] = False          # an opt-in of this run, not the checkpoint's
+    if ran["dt_fraction"] is None:
+        ran["dt_fraction"] = dyn.dt / math.sqrt(float(state.mass.min()) / law.kn)
+    for name, value in given.items():
+        if name == "mu_prep" and value is None:
+            continue
+        free = RESUME_FREE.get(name)
+        if free == "any" or (free == "prepared" and not mid_run):
+            ran[name] = value
+        elif not _same(value, ran[name]):
+            have = "does not record it" if ran[name] is None else f"has {name} = {ran[name]!r}"
+            raise ValueError(f"--resume {file}: {flag(name)} {value!r} conflicts with the "
+                             f"checkpoint, which {have}; accepted: omit {flag(name)} (a resumed "
+                             f"run uses the checkpoint's settings) or give its value")
+    return ran
+
+
+def _given(settings: Settings) -> dict:
+    """The settings that differ from the defaults (what an API caller set)."""
+    return {k: v for k, v in asdict(settings).items() if not _same(v, getattr(Settings(), k))}
+
+
 def run_job(path_name: str, settings: Settings, out_dir: str | FsPath, resume: str | None = None,
-            progress: bool = True) -> dict:
-    """Run ``path_name`` (see the module doc); returns {what: file written}."""
+            progress: bool = True, given: dict | None = None) -> dict:
+    """Run ``path_name`` (see the module doc); returns {what: file written}.
+
+    ``given``: the settings set explicitly (by default those that differ from the
+    defaults); on ``resume`` they are checked against the checkpoint's
+    (:func:`resumed_settings`).
+    """
     settings.validate()
     path = load_path(path_name)
     out_dir = FsPath(out_dir)
     t0 = time.perf_counter()
     written = {}
     if resume is not None:
-        state, dyn, run, meta = checkpoint.load(resume)
-        prep = meta.get("preparation")
+        state, dyn, run, saved = checkpoint.load(resume)
+        prep = saved.get("preparation")
+        continues = run is not None and len(path.expand()) == 1
+        if continues and saved.get("path") not in (None, json.loads(json.dumps(path.to_dict()))):
+            raise ValueError(f"--resume {resume}: path {path.name!r} differs from the "
+                             f"checkpoint's path {saved['path'].get('name')!r}; accepted: the "
+                             f"checkpoint's path (a mid-run checkpoint continues its own path; "
+                             f"a probe family starts afresh on its state)")
+        ran = resumed_settings(resume, saved.get("settings", {}), state, dyn, run is not None,
+                               _given(settings) if given is None else given)
+        for w in preparation_warnings(prep):
+            if not ran["allow_unrelaxed"]:
+                raise PreparationError(f"--resume {resume}: {w}; accepted: a relaxed sample, "
+                                       f"or --allow-unrelaxed to use it anyway")
+            warnings.warn(f"--resume {resume}: {w}", UnrelaxedWarning, stacklevel=2)
         if run is None:                      # a prepared sample: start the path on it
-            dyn = replace(dyn, **_rates(settings))
+            dyn = replace(dyn, **_rates(ran["inertial"]))
+        source = f"checkpoint {resume}"
     else:
         state, dyn, info = prepare_sample(settings, progress)
-        prep, run = info.to_dict(), None
+        prep, run, ran, source = info.to_dict(), None, asdict(settings), "given"
         written["prepared"] = checkpoint.save(out_dir / "prepared.npz", state, dyn, None,
-                                              {"job": "prepare", "settings": asdict(settings),
-                                               "preparation": prep})
+                                              {"job": "prepare", "settings": ran,
+                                               "preparation": prep,
+                                               "warnings": preparation_warnings(prep)})
     t_prep = time.perf_counter() - t0
-    meta = {"settings": asdict(settings), "path": path.to_dict(), "preparation": prep,
-            "resumed_from": resume}
+    checkpoint_every = ran["checkpoint_every"]
+    meta = {"settings": ran, "settings_source": source, "path": path.to_dict(),
+            "preparation": prep, "warnings": preparation_warnings(prep), "resumed_from": resume}
     runs = path.expand()
     histories = []
     for k, sub in enumerate(runs):
@@ -153,7 +281,7 @@ def run_job(path_name: str, settings: Settings, out_dir: str | FsPath, resume: s
                 now = min(r.rows[-1]["tau"] - r.rows[0]["tau"], bar.total)
                 bar.update(now - done[0])
                 done[0] = now
-            if settings.checkpoint_every and len(r.rows) % settings.checkpoint_every == 0:
+            if checkpoint_every and len(r.rows) % checkpoint_every == 0:
                 checkpoint.save(ck, s, dyn, r, meta)
 
         runner.run(st, this_run, on_row=on_row)
@@ -194,6 +322,8 @@ def _prep_progress(bar):
     last = [0]
 
     def update(info):
+        if info.steps < last[0]:             # a new preparation stage counts from 0
+            last[0] = 0
         bar.update(info.steps - last[0])
         last[0] = info.steps
         bar.set_postfix(c=f"{info.c:.4f}", P=f"{info.P:.3f}", f_unb=f"{info.unbalanced:.1e}")

@@ -2,13 +2,13 @@
 resumably through an executor (:mod:`contfab.executor`).
 
 A campaign (:class:`CampaignSettings`) is a list of :class:`RunSpec` — a loading path on
-a dense (μ_prep = 0) or loose (μ_prep = μ) sample at a stiffness number κ = kn/P0, with a
-role: ``fit`` (the calibration fits it), ``heldout`` (validation: reported, and it chooses
-the fabric law), ``reference`` (DEM curves for the tests, reported) — each run for every
-seed, plus the stress-probing runs (seed 001 §3 in 2D): a loose sample loaded along the
-biaxial path to ``probe_strain``, held at constant stress until its creep has stopped,
-then probed by a family of load-unload stress probes with a zero-increment reference
-(:class:`dem.paths.ProbeFamily`). In the rigid-grain limit the pressure enters only through
+a dense (μ_prep = 0) or loose (:data:`dem.job.LOOSE`) sample at a stiffness number
+κ = kn/P0, with a role: ``fit`` (the calibration fits it), ``heldout`` (validation:
+reported, and it chooses the fabric law), ``reference`` (DEM curves for the tests,
+reported) — each run for every seed, plus the stress-probing runs (seed 001 §3 in 2D):
+a loose sample loaded along the biaxial path to ``probe_strain``, held at constant stress
+until its creep has stopped, then probed by a family of load-unload stress probes with a
+zero-increment reference (:class:`dem.paths.ProbeFamily`). In the rigid-grain limit the pressure enters only through
 κ, so "two pressures" are two κ.
 
 Layout under the campaign directory::
@@ -39,7 +39,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path as FsPath
 
 from dem.fileio import atomic_path, write_json
-from dem.job import Settings
+from dem.job import LOOSE, Settings
 from dem.paths import load_path
 
 DENSITIES = ("dense", "loose")
@@ -55,7 +55,7 @@ class RunSpec:
     """One loading path on one kind of sample; run for every seed of the campaign."""
 
     path: str                 # a standard path name or a path file
-    density: str              # "dense" (μ_prep = 0) or "loose" (μ_prep = μ)
+    density: str              # "dense" (μ_prep = 0) or "loose" (dem.job.LOOSE)
     kappa: float              # stiffness number kn/P0
     role: str = "fit"         # "fit", "heldout" (validation), "reference" (curves only)
 
@@ -130,9 +130,9 @@ class CampaignSettings:
             self.dem_settings("dense", k, self.seeds[0]).validate()
 
     def dem_settings(self, density: str, kappa: float, seed: int) -> Settings:
+        packing = {"mu_prep": 0.0} if density == "dense" else LOOSE
         return Settings(n=self.n, seed=seed, radii=self.radii, kappa=kappa, mu=self.mu,
-                        mu_prep=0.0 if density == "dense" else self.mu, inertial=self.inertial,
-                        checkpoint_every=self.checkpoint_every)
+                        inertial=self.inertial, checkpoint_every=self.checkpoint_every, **packing)
 
     def to_dict(self) -> dict:
         d = asdict(self)

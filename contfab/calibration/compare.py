@@ -1,6 +1,6 @@
 """``contfab compare``: the DEM and the material point on one loading path, side by side.
 
-The DEM prepares a sample (dense: μ_prep = 0, or loose: μ_prep = μ) and runs the path
+The DEM prepares a sample (dense: μ_prep = 0, or loose: :data:`dem.job.LOOSE`) and runs the path
 (resumable, as a campaign job: :func:`contfab.calibration.campaign.run_dem_job`); the material point
 runs the same path from the DEM sample's initial state (c0, and the fabric for tier 2)
 with the given parameters. Both are sampled at the same strains (:mod:`contfab.calibration.curves`).
@@ -21,7 +21,7 @@ from contfab.calibration.fitting import Target, run_model
 from contfab.params import default_params, default_params_path, load_params
 from contfab.calibration.report import error_rows, overlay_plot, write_tables
 from dem.fileio import write_csv, write_json
-from dem.job import Settings
+from dem.job import LOOSE, Settings
 from dem.paths import load_path
 from dem.provenance import code_versions
 
@@ -36,8 +36,8 @@ def compare(path_name: str, out: str | FsPath, params_file: str | None = None,
     params = default_params() if params_file is None else load_params(params_file)
     tier = params.tier if tier is None else tier
     params = params.with_tier(tier)
-    settings = Settings(n=n, seed=seed, kappa=kappa, mu=mu,
-                        mu_prep=0.0 if density == "dense" else mu, inertial=inertial)
+    packing = {"mu_prep": 0.0} if density == "dense" else LOOSE
+    settings = Settings(n=n, seed=seed, kappa=kappa, mu=mu, inertial=inertial, **packing)
     settings.validate()
     out = FsPath(out)
     prepared = out / "dem" / "prepared_sample.npz"

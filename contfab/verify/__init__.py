@@ -1,0 +1,1 @@
+"""Verification of the DEM against an independent engine (``contfab verify``)."""

