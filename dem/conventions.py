@@ -1,4 +1,4 @@
-"""The conventions of DESIGN.md §2–§3, in one place for the DEM and the continuum.
+"""The conventions of docs/theory.md §1–§2, in one place for the DEM and the continuum.
 
 Tension is positive. For a 2x2 symmetric stress (sxx, syy, sxy):
 

@@ -1,8 +1,8 @@
 """Point numba's on-disk cache at a directory keyed on the project's source.
 
 numba's ``cache=True`` keys a cached kernel on its *own* file only: editing a
-callee in another module leaves callers' caches stale (ENGINEERING.md, seen on this
-machine class). contfab kernels call :mod:`dem.conventions`, so a per-file key is
+callee in another module leaves callers' caches stale (a caller then runs the
+old callee). contfab kernels call :mod:`dem.conventions`, so a per-file key is
 not enough. Before numba is imported we set ``NUMBA_CACHE_DIR`` to
 ``~/.cache/contfab/numba/<hash of every .py file in dem/ and contfab/>``: any edit
 anywhere gives a fresh cache, an unchanged tree reuses the warm one.

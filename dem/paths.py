@@ -1,6 +1,6 @@
 """The loading-path description shared by the DEM cell and the material point.
 
-A loading path (DESIGN §5) is a list of stages. In a stage each component of the
+A loading path (docs/theory.md §10) is a list of stages. In a stage each component of the
 velocity gradient L (``xx``, ``yy``, ``xy``, ``yx``; L_xy = ∂v_x/∂y) is either
 
 * **rate-controlled**: L_ij = rate · γ̇_ref, or

@@ -65,7 +65,7 @@ class RunSpec:
 
 
 def default_runs(kappas=(1e3, 1e4), kappa_heldout=3e3) -> tuple[RunSpec, ...]:
-    """The default campaign (issue 4): dense and loose biaxial at every fitted κ, simple
+    """The default campaign (docs/theory.md §12): dense and loose biaxial at every fitted κ, simple
     shear at constant normal stress with a reversal, isotropic compression (fitted); a
     biaxial at a κ not fitted, an isochoric shear and a 90° change of loading direction
     (held out), and the other standard paths (reference curves, not used to choose)."""
@@ -174,8 +174,8 @@ def _relative(start: str | None, base: FsPath) -> str | None:
 
 
 def _check_same_job(file: FsPath, job: DemJob) -> None:
-    """Refuse a directory made by another job; record this job otherwise. (Records of
-    before 2026-12-02 hold an absolute ``start``: compared as the file it names.)"""
+    """Refuse a directory made by another job; record this job otherwise. (Older records
+    hold an absolute ``start``: compared as the file it names.)"""
     mine = json.loads(json.dumps(job.describe(file.parent)))
     if file.exists():
         theirs = json.loads(file.read_text())

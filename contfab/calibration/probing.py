@@ -28,7 +28,7 @@ a (n·Δσ_k/|Δσ_k|)₊. So
   associated flow rule.
 
 For the isotropic cone (tiers 0/1) at a biaxial state σxy = 0, σyy < σxx:
-n ∝ (1 + sin φ, -1 + sin φ) and m ∝ (1 + sin ψ, -1 + sin ψ) (DESIGN §4), so δ follows in
+n ∝ (1 + sin φ, -1 + sin φ) and m ∝ (1 + sin ψ, -1 + sin ψ) (docs/theory.md §4), so δ follows in
 closed form (:func:`cone_angles`); the tests check the probe analysis against it.
 """
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""DEM studies: cell size N, inertial number I, stiffness number κ (DESIGN §2, §6).
+"""DEM studies: cell size N, inertial number I, stiffness number κ (docs/theory.md §1, §11).
 
 Every point prepares a loose sample (μ_prep = μ = 0.5, so it reaches the critical state
 without a peak) of N discs (diameters uniform in [0.8, 1.2]) at P0 = 1 and runs biaxial
