@@ -5,8 +5,8 @@ A campaign (:class:`CampaignSettings`) is a list of :class:`RunSpec` — a loadi
 a dense (μ_prep = 0) or loose (μ_prep = μ) sample at a stiffness number κ = kn/P0, with a
 role: ``fit`` (the calibration fits it), ``heldout`` (validation: reported, and it chooses
 the fabric law), ``reference`` (DEM curves for the tests, reported) — each run for every
-seed, plus the stress-probing runs (seed 001 §3 in 2D): a loose sample loaded along the
-biaxial path to ``probe_strain``, held at constant stress until its creep has stopped,
+seed, plus the stress-probing runs (Karapiperis et al. 2020, §3, in 2D): a loose sample
+loaded along the biaxial path to ``probe_strain``, held at constant stress until its creep has stopped,
 then probed by a family of load-unload stress probes with a zero-increment reference
 (:class:`dem.paths.ProbeFamily`). In the rigid-grain limit the pressure enters only through
 κ, so "two pressures" are two κ.
@@ -284,7 +284,7 @@ L = {{ xy = 0.0 }}
 sigma = {{ xx = -1.0, yy = {{ increment = 0.0 }}, yx = {{ increment = 0.0 }} }}
 ''')
     _write_text(layout.probes_path, f'''name = "probes"
-description = "{cs.probe_directions} load-unload stress probes of {cs.probe_magnitude:g} P0 in the (sigma_xx, sigma_yy) plane and a zero-increment reference (seed 001 section 3, in 2D)."
+description = "{cs.probe_directions} load-unload stress probes of {cs.probe_magnitude:g} P0 in the (sigma_xx, sigma_yy) plane and a zero-increment reference (Karapiperis et al. 2020 section 3, in 2D)."
 
 [probes]
 directions = {cs.probe_directions}
