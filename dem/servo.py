@@ -39,7 +39,7 @@ dashpots included, at the target in a steady state.
 Gain. τ must be (i) long compared with the time step (dt/τ <= 0.1 keeps the discrete
 loop within a few percent of the continuous one) and (ii) short compared with the time
 over which the packing relaxes non-affinely, so the loop sees the affine plant (a) it
-was designed for and not the softer relaxed one (on the relaxed plant, (b) would be
+was built for and not the softer relaxed one (on the relaxed plant, (b) would be
 under-damped). The non-affine relaxation of a disc takes at least one binary contact
 time t_c = π sqrt(m/(2 kn)) ∝ κ^(-1/2); we take
 
