@@ -77,7 +77,7 @@ def _dem_settings_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--dt-fraction", type=float, default=0.1,
                    help="time step in units of sqrt(m_min/kn) (default 0.1)")
     p.add_argument("--threads", type=int, default=1,
-                   help="threads of the DEM passes (default 1: faster on these machines, see "
+                   help="threads of the DEM passes (default 1: faster on 2-core machines, see "
                         "dem/threads.py)")
 
 
