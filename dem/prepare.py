@@ -1,4 +1,4 @@
-"""Sample preparation: a random gas, compressed isotropically and relaxed (DESIGN §6).
+"""Sample preparation: a random gas, compressed isotropically and relaxed (docs/theory.md §11).
 
 1. :func:`random_gas`: N discs at packing fraction ``c_gas`` in a square cell, placed
    without overlap on randomly chosen sites of a square grid with a random offset each,
@@ -11,7 +11,7 @@
        not rattlers: a rattler may drift or spin freely in its cage forever),
    with σxy servo-controlled to 0 as well,
    then the friction is switched to the test value (tangential histories kept).
-3. :func:`compress_to_fraction` (seed 002 check): compression at a prescribed strain
+3. :func:`compress_to_fraction` (check of Madadi et al. 2004): compression at a prescribed strain
    rate to a target packing fraction, then relaxation at fixed volume. Targets above
    C_MAX are refused: random disc packings jam near c ≈ 0.84, and past C_MAX the mean
    overlap would exceed what a linear contact law represents.
