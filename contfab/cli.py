@@ -89,7 +89,7 @@ def _dem_settings_args(p: argparse.ArgumentParser) -> None:
                    help="use a sample whose preparation hit the step limit unrelaxed (recorded "
                         "as a warning in the sidecars)")
     p.add_argument("--threads", type=int, default=1,
-                   help="threads of the DEM passes (default 1: faster on these machines, see "
+                   help="threads of the DEM passes (default 1: faster on 2-core machines, see "
                         "dem/threads.py)")
 
 

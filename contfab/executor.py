@@ -11,7 +11,7 @@ loop waits on (:func:`concurrent.futures.as_completed` or dask's ``as_completed`
 * ``serial`` (default): jobs run in this process, one after the other.
 * ``pool``: a :class:`concurrent.futures.ProcessPoolExecutor` whose workers are started
   with *spawn* (a forked child of a process that ran an OpenMP-parallel numba kernel
-  hangs: ENGINEERING.md) and run one numba thread each.
+  can hang) and run one numba thread each.
 * ``dask``: a dask.distributed cluster: an existing scheduler (``scheduler="tcp://..."``,
   workers started with ``dask worker``), or a LocalCluster of single-threaded worker
   processes made here. Workers get ``NUMBA_NUM_THREADS=1`` and ``OMP_NUM_THREADS=1``.

@@ -1,7 +1,7 @@
 """Fabric algebra on the continuum side: the admissible set and its projection.
 
 The conversions F <-> (A, Bc, Bs) <-> (A, B, θp) and the admissibility margin are
-in :mod:`dem.conventions` (shared with the DEM). The admissible set of seed 000
+in :mod:`dem.conventions` (shared with the DEM). The admissible set of Roux & Radjaï 2001
 eqs 1.14–1.15,
 
     0 <= B <= A,   (π/6) A + (√3/4) B <= 1,

@@ -1,6 +1,6 @@
 r"""The material-point driver: one constitutive point driven along a loading path.
 
-It runs the loading paths the DEM cell runs (:mod:`dem.paths`, DESIGN §5) through the
+It runs the loading paths the DEM cell runs (:mod:`dem.paths`, docs/theory.md §10) through the
 one update interface :func:`contfab.models.tiers.update`, so every model tier works the
 same way, and returns the history as arrays (:class:`PointResult`); writing files is a
 separate step (:mod:`contfab.calibration.point_job`). Nothing here does I/O.

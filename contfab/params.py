@@ -172,7 +172,7 @@ RELAX_RATE = 24
 
 @dataclass(frozen=True)
 class Regularization(Section):
-    """The elastic regularization of the rigid-plastic model (DESIGN §4 "Return mapping").
+    """The elastic regularization of the rigid-plastic model (docs/theory.md §3).
 
     Isotropic 2D elasticity with Young-like modulus E_reg = λ·p_ref and Poisson-like
     ratio ν: bulk K = E_reg / (2(1 - ν)) (mean stress = K tr ε), shear G = E_reg / (2(1 + ν))
@@ -212,7 +212,7 @@ class Regularization(Section):
 
 @dataclass(frozen=True)
 class Tier0(Section):
-    """Tier 0: constant friction angle φ and dilatancy angle ψ (seed 000 §3)."""
+    """Tier 0: constant friction angle φ and dilatancy angle ψ (Roux & Radjaï 2001, §3)."""
 
     NAME: ClassVar[str] = "tier0"
     phi_deg: float = param("deg", Range(0.0, 90.0), "friction angle phi")
@@ -236,7 +236,7 @@ class Tier0(Section):
 
 @dataclass(frozen=True)
 class Tier1(Section):
-    """Tier 1: φ(c), ψ(c) linear around the critical state c* (seed 000 §4, DESIGN §4).
+    """Tier 1: φ(c), ψ(c) linear around the critical state c* (docs/theory.md §5).
 
     φ(c) = φ* + φ'(c - c*) clamped to [phi_min, phi_max]; ψ(c) = ψ'(c - c*) clamped to
     [-φ(c), φ(c)] (so |ψ| <= φ at every c and ψ(c*) = 0). The clamps only act at c far
@@ -277,10 +277,10 @@ class Tier1(Section):
 
 @dataclass(frozen=True)
 class Tier2(Section):
-    """Tier 2: friction and dilatancy per slip plane, fabric hardening (seed 000 §5, §8).
+    """Tier 2: friction and dilatancy per slip plane, fabric hardening (docs/theory.md §6–§7).
 
     φ(θ) = a0 + φ'(c - c*) + a1 A + a2 B cos(2(θ - θp) + a3), ψ(θ) likewise with b0..b3
-    (seed eq. 1.8; the c-terms and the clamps are tier 1's, read from ``[tier1]``: with
+    (docs/theory.md §6; the c-terms and the clamps are tier 1's, read from ``[tier1]``: with
     a0 = φ*, b0 = a1 = b1 = a2 = b2 = 0 tier 2 is tier 1). The yield function is the
     softmax-weighted mean (``sharpness`` β) of the two conjugate slip families' exact maxima,
     found from a grid of ``n_search`` planes per family (:mod:`contfab.models.slip_planes`).
@@ -354,7 +354,7 @@ class Tier2(Section):
             raise ParamError(
                 f"[tier2] z_crit = {self.z_crit:g}, b_ratio_crit = {self.b_ratio_crit:g} is not "
                 f"an admissible critical fabric: need B/A < 1 and z_c/6 + (sqrt(3)/4) "
-                f"b z_c/pi < 1 (seed 000 eqs 1.14-1.15), got "
+                f"b z_c/pi < 1 (Roux & Radjai 2001, eqs 1.14-1.15), got "
                 f"{self.z_crit / 6 + math.sqrt(3) / 4 * self.b_ratio_crit * a_c:.4g}")
 
     def array(self) -> dict[int, float]:
@@ -385,7 +385,7 @@ class Initial(Section):
         if margin < 0.0:
             raise ParamError(
                 f"[initial] A0 = {self.A0:g}, B0 = {self.B0:g} is not an admissible fabric: "
-                f"need 0 <= B0 <= A0 and (pi/6) A0 + (sqrt(3)/4) B0 <= 1 (seed 000 eqs 1.14-1.15), "
+                f"need 0 <= B0 <= A0 and (pi/6) A0 + (sqrt(3)/4) B0 <= 1 (Roux & Radjai 2001, eqs 1.14-1.15), "
                 f"got B0 - A0 = {self.B0 - self.A0:.4g}, "
                 f"(pi/6) A0 + (sqrt(3)/4) B0 = {math.pi / 6 * self.A0 + math.sqrt(3) / 4 * self.B0:.4g}")
 
@@ -519,7 +519,7 @@ def load_params(path: str | Path) -> Params:
 
 
 def default_params_path() -> Path:
-    """The shipped default parameter file (``contfab calibrate`` at its defaults, issue 4)."""
+    """The shipped default parameter file (``contfab calibrate`` at its defaults)."""
     return Path(__file__).resolve().parent / "data" / "default_params.toml"
 
 

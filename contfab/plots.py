@@ -4,8 +4,8 @@
 the standard paths, as in the DEM's plot, so the two read alike), plus A, B and θp for
 tiers that carry a fabric; several runs (a probe family) are overlaid. ``response_plot``:
 for a probe family, the stress increments and the strain responses at the end of each
-probe (seed 001's response envelope, in 2D). matplotlib is imported lazily (Agg backend),
-and every file is written atomically.
+probe (the response envelope of Karapiperis et al. 2020, in 2D). matplotlib is imported
+lazily (Agg backend), and every file is written atomically.
 """
 from __future__ import annotations
 

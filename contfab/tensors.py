@@ -1,6 +1,6 @@
 """2x2 symmetric tensor algebra in the Voigt form used by the model and the FEM.
 
-Conventions (DESIGN §2): tension positive; stress in Voigt form
+Conventions (docs/theory.md §1): tension positive; stress in Voigt form
 ``s = (sxx, syy, sxy)``; strain in Voigt form with *engineering* shear
 ``e = (exx, eyy, gxy)``, gxy = 2 exy, so that the work is ``s · e`` and a tangent
 ``D = ∂s/∂e`` is the 3x3 matrix the FEM assembles. Spin increment

@@ -1,4 +1,4 @@
-"""The conventions of DESIGN.md §2–§3, in one place for the DEM and the continuum.
+"""The conventions of docs/theory.md §1–§2, in one place for the DEM and the continuum.
 
 Tension is positive. For a 2x2 symmetric stress (sxx, syy, sxy):
 
@@ -14,7 +14,7 @@ contact counted from both sides, tr F = z) relates to the state (A, Bc, Bs) =
     F = (πA/2) I + (π/4) [[Bc, Bs], [Bs, -Bc]]
     A = tr F / π,   Bc = (4/π) F'xx,   Bs = (4/π) F'xy.
 
-Admissible fabrics (seed 000 eqs 1.14-1.15): 0 <= B <= A and (π/6) A + (√3/4) B <= 1.
+Admissible fabrics (Roux & Radjaï 2001, eqs 1.14–1.15): 0 <= B <= A and (π/6) A + (√3/4) B <= 1.
 
 Every function is a numba ``njit`` that accepts scalars or equally shaped arrays, so
 numba kernels and plain Python share the same formula. Angles are in radians.

@@ -1,19 +1,19 @@
-"""Seed 002 check: the trace of the volume-weighted fabric of frictionless packings.
+"""The trace of the volume-weighted fabric of frictionless packings against Madadi et al. (2004).
 
-Seed 002 (eq. 11) predicts tr<F>_V = C̄ ν g2 with g2 of eq. (12) (exact) computed
+Madadi et al. (2004, eq. 11) predict tr<F>_V = C̄ ν g2 with g2 of eq. (12) (exact) computed
 from the size distribution (:func:`dem.measure.g2_exact`, applied to the sample's own
-radii, as the seed does with its local g2). This module prepares a frictionless packing
+radii, as the paper does with its local g2). This module prepares a frictionless packing
 at a target packing fraction ν (:func:`dem.prepare.compress_to_fraction`) and reports
 
     ratio = tr<F>_V / (C̄ ν g2)      (C̄ = mean contacts per disc, rattlers included,
-                                      as in the seed's evaluation)
+                                      as in the paper's evaluation)
     ratio_no_rattlers               (the same with rattlers and their contacts removed
                                       from tr<F>_V, C̄, ν and g2)
     z_no_rattlers                   (C̄ with rattlers excluded; >= 4 for a jammed
                                       frictionless packing, isostaticity)
 
 and the nominal g2 of the distribution (1.223 for bidisperse 1:3 50/50 and 1.085 for
-uniform w0 = 0.5 in the seed).
+uniform w0 = 0.5 in the paper).
 """
 from __future__ import annotations
 

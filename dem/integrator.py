@@ -60,7 +60,7 @@ CHUNK = 256
 FASTMATH = {"contract", "reassoc", "nsz"}
 """LLVM flags of the pass kernels: fused multiply-add and reordered sums (same code for
 every thread count, so parallel runs stay bitwise equal to serial ones); no nnan/ninf, so
-the non-finite check stays exact (ENGINEERING.md)."""
+the non-finite check stays exact (with them LLVM may delete it)."""
 Z_MAX = 6
 DT_FRACTION = 0.1
 """Default dt in units of sqrt(m_min/kn)."""

@@ -1,7 +1,7 @@
-"""Measurements on a DEM state (DESIGN §6): stress, packing, coordination, fabric,
+"""Measurements on a DEM state (docs/theory.md §11): stress, packing, coordination, fabric,
 force networks, energies, control numbers, homogeneity.
 
-Conventions (DESIGN §2–§3, :mod:`dem.conventions`): tension positive. A contact is a
+Conventions (docs/theory.md §1–§2, :mod:`dem.conventions`): tension positive. A contact is a
 listed pair with overlap δ > 0; its branch vector is l = xj - xi, normal n = l/|l|, and
 f the force on i (the forces of the last step, so the stress here is the one the servo
 saw).
@@ -13,7 +13,7 @@ saw).
   z* = 2 Nc* / N*.
 * Fabric per particle F = (1/N) Σ_discs Σ_their contacts n⊗n (tr F = z) ->
   (A, Bc, Bs) by :func:`dem.conventions.fabric_state`.
-* Volume-weighted fabric of seed 002 eq. (3): <F>_V = (1/V) Σ_p π r_p² Σ_{c∈p} n⊗n.
+* Volume-weighted fabric of Madadi et al. (2004), eq. (3): <F>_V = (1/V) Σ_p π r_p² Σ_{c∈p} n⊗n.
 * Sliding fraction: contacts with |ft| >= (1 - 1e-9) μ fn (all contacts when μ = 0).
 * Strong / weak network: contacts with fn above / not above the mean normal force.
 * Force anisotropy (Rothenburg & Bathurst 1989): the mean contact forces per direction θ
@@ -154,7 +154,7 @@ def normal_histogram(normals: np.ndarray, n_discs: int, bins: int = 36):
 
 
 def g2_exact(radius: np.ndarray) -> float:
-    """Seed 002 eq. (12) for the empirical distribution of ``radius``:
+    """Madadi et al. (2004), eq. (12), for the empirical distribution of ``radius``:
 
         g2 = <a² / φ(a)> / (<1/φ(a)> <a²>),   φ(a) = arcsin(ā / (a + ā)).
     """
@@ -238,7 +238,7 @@ def localization_index(state: State, s_unwrapped_ref: np.ndarray, h_ref: np.ndar
 
 
 def measure(state: State, law: ContactLaw, strain_rate: np.ndarray | None = None) -> dict:
-    """All scalar measurements of DESIGN §6 at the current state (a flat dict)."""
+    """All scalar measurements of docs/theory.md §11 at the current state (a flat dict)."""
     c = Contacts(state)
     n = state.n
     sxx, syy, sxy = love_weber(state, c)

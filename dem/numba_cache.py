@@ -1,7 +1,7 @@
 """Point numba's on-disk cache at a directory keyed on the kernels' sources.
 
 numba's ``cache=True`` keys a cached kernel on its *own* file only: editing a
-callee in another module leaves callers' caches stale (seen on this machine class: a
+callee in another module leaves callers' caches stale (measured: a
 stale tier-2 kernel looped forever after a callee in another module changed). contfab
 kernels call :mod:`dem.conventions` and read constants of other modules, so a per-file
 key is not enough. Before numba is imported we set ``NUMBA_CACHE_DIR`` to

@@ -5,8 +5,9 @@ disc of radius r has mass m = ρ π r² and moment of inertia I = m r² / 2.
 
 Radii distributions (all normalized to a mean diameter of exactly 1 in expectation):
 
-* ``uniform:W``       diameters uniform in [1 - W, 1 + W], 0 <= W < 1 (seed 002's w0 is
-                      the same relative half-width on radii: radii in [(1-w0)ā, (1+w0)ā]).
+* ``uniform:W``       diameters uniform in [1 - W, 1 + W], 0 <= W < 1 (the w0 of Madadi
+                      et al. 2004 is the same relative half-width on radii: radii in
+                      [(1-w0)ā, (1+w0)ā]).
                       Stratified sampling: one radius per 1/N quantile slice, shuffled,
                       so the sample's moments are those of the law to O(1/N²).
 * ``bidisperse:Q:F``  two radii in ratio Q = r_large/r_small >= 1, a number fraction F of

@@ -1,6 +1,6 @@
 """The loading-path description shared by the DEM cell and the material point.
 
-A loading path (DESIGN §5) is a list of stages. In a stage each component of the
+A loading path (docs/theory.md §10) is a list of stages. In a stage each component of the
 velocity gradient L (``xx``, ``yy``, ``xy``, ``yx``; L_xy = ∂v_x/∂y) is either
 
 * **rate-controlled**: L_ij = rate · γ̇_ref, or
@@ -38,7 +38,7 @@ Path files are TOML (angles in degrees there, radians in code)::
     L = { yx = 0.0 }                   # the shear component not used by σxy
 
 A file with a ``[probes]`` table instead of stages describes a family of stress
-probes (seed 001 §3, in 2D): from whatever state the driver starts in, stress
+probes (Karapiperis et al. 2020, §3, in 2D): from whatever state the driver starts in, stress
 increments of size ``magnitude`` in ``directions`` equally spaced directions of the
 (σxx, σyy) plane (σxy held), optionally each followed by its unloading (``unload``),
 plus a zero-increment reference probe (``hold``), see :func:`Path.expand`.
@@ -175,8 +175,8 @@ class Stage:
 
 @dataclass(frozen=True)
 class ProbeFamily:
-    """Stress probes (seed 001 §3 in 2D): increments Δσ = m (cos β, sin β) in the
-    (σxx, σyy) plane, β = 2πk/n, each applied from the same starting state.
+    """Stress probes (Karapiperis et al. 2020, §3, in 2D): increments Δσ = m (cos β, sin β)
+    in the (σxx, σyy) plane, β = 2πk/n, each applied from the same starting state.
 
     With ``unload`` each probe ramps back to its start stress in a second stage of the
     same length: the strain left after unloading is the plastic one (Bardet 1994, seed

@@ -7,7 +7,7 @@ The cell deforms homogeneously with the velocity gradient L (L_ij = ∂v_i/∂x_
 
 Because positions are stored as s, a change of h moves every disc affinely: the whole
 sample deforms, not a layer at the periodic boundary, so a stress servo cannot pin a
-shear band at the boundary (DESIGN §6). Discs move relative to the affine field with
+shear band at the boundary (docs/theory.md §11). Discs move relative to the affine field with
 the fluctuation velocity v' = h ṡ; the full velocity is u = L x + v'.
 
 One step of the cell uses the Cayley (Crank–Nicolson) map of ḣ = L h at constant L,

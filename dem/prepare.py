@@ -1,4 +1,4 @@
-"""Sample preparation: a random gas, compressed isotropically and relaxed (DESIGN §6).
+"""Sample preparation: a random gas, compressed isotropically and relaxed (docs/theory.md §11).
 
 1. :func:`random_gas`: N discs at packing fraction ``c_gas`` in a square cell, placed
    without overlap on randomly chosen sites of a square grid with a random offset each,
@@ -19,7 +19,7 @@
    starts gentle (with the test restitution the sample compacts further: measured
    c0 0.8050 against 0.8041, N = 1000, κ = 1e3, μ_prep = 10, docs/dem_validation.md),
    then with the test law.
-3. :func:`compress_to_fraction` (seed 002 check): compression at a prescribed strain
+3. :func:`compress_to_fraction` (check of Madadi et al. 2004): compression at a prescribed strain
    rate to a target packing fraction, then relaxation at fixed volume. Targets above
    C_MAX are refused: random disc packings jam near c ≈ 0.84, and past C_MAX the mean
    overlap would exceed what a linear contact law represents.

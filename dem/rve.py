@@ -1,6 +1,6 @@
 """Running a loading path (:mod:`dem.paths`) on a prepared sample.
 
-Each stage maps onto the cell as DESIGN §5 says: rate-controlled L components move at
+Each stage maps onto the cell as docs/theory.md §10 says: rate-controlled L components move at
 rate · γ̇_ref, with γ̇_ref = I/d · sqrt(P0/ρ) (= I in DEM units), and stress-controlled
 components are driven by the servo (:mod:`dem.servo`) towards the stage's target, which
 is updated every CHECKS_PER_OUTPUT-th of an output interval and interpolated linearly

@@ -28,8 +28,7 @@ with fd = -γ vn: it answers the cell's strain rate within the same step, σ^d �
 (C ~ γ z c per unit volume). Fed back through the proportional term, it closes a loop
 L_n = (2/τ)(σ* - σ^s - C L_(n-1))/M of gain (2/τ) C/M ≈ 2.2 β (β the damping ratio of
 the contact law): about 0.6–0.8 at e = 0.5 (stable, but the strain rate rings), above 1
-at e <= 0.4 (it never settles: no preparation relaxed in 2e6 steps; measured on branch
-dem-e, 2026-12-02). So the proportional term acts on the spring stress only,
+at e <= 0.4 (it never settles: no preparation relaxed in 2e6 steps, measured). So the proportional term acts on the spring stress only,
 
     L_ab = L_int + (2/τ) (σ*_ab - σ^c_ab + σ^d_ab) / M_ab,   dL_int/dt = (σ*_ab - σ^c_ab) / (M_ab τ²),   (b')
 
@@ -40,7 +39,7 @@ dashpots included, at the target in a steady state.
 Gain. τ must be (i) long compared with the time step (dt/τ <= 0.1 keeps the discrete
 loop within a few percent of the continuous one) and (ii) short compared with the time
 over which the packing relaxes non-affinely, so the loop sees the affine plant (a) it
-was designed for and not the softer relaxed one (on the relaxed plant, (b) would be
+was built for and not the softer relaxed one (on the relaxed plant, (b) would be
 under-damped). The non-affine relaxation of a disc takes at least one binary contact
 time t_c = π sqrt(m/(2 kn)) ∝ κ^(-1/2); we take
 

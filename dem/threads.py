@@ -2,8 +2,8 @@
 
 A DEM step runs two parallel passes (:mod:`dem.integrator`) of a few to a few hundred µs
 each, so every step wakes and joins the thread pool twice. On the 2-core virtual machines
-this project runs on, that join costs more than the second thread gains, at every size
-measured (2026-12-02, idle machine, GNU OpenMP):
+it was measured on, that join costs more than the second thread gains, at every size
+measured (idle machine, GNU OpenMP):
 
 =====================================  ==========  ===========================  ==========
 run                                    1 thread    2 threads, PASSIVE waiting   2, ACTIVE

@@ -1,4 +1,4 @@
-"""DESIGN §2–3 conventions: invariants, fabric conversions, admissible set."""
+"""The conventions of docs/theory.md §1–§2: invariants, fabric conversions, admissible set."""
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st

@@ -189,8 +189,8 @@ ISO = np.array([3.0 / np.pi, 0.0, 0.0])
 
 def test_balance_law_with_fitted_ratios_aligns_with_the_compression_axis():
     # κa : kc : ko = 0.394 : 1.776 : 1 solves the biaxial steady state z = 3, B/A = 0.25
-    # (DESIGN: the DEM's values) in closed form; the overall scale (here 10) only sets the
-    # rate. Started isotropic at z = 3, driven to strain 10 as in DESIGN's template run.
+    # (the DEM's values) in closed form; the overall scale (here 10) only sets the
+    # rate. Started isotropic at z = 3, driven to strain 10 as in docs/theory.md §7.
     coeffs = (LAW := fl.LAW_BALANCE, 3.94, 17.76, 10.0, 0.0, 0.0, 0.0)
     hist, projected = fl.drive_fabric(ISO, *_biaxial(4000, 10.0), *coeffs)
     z, ratio, theta_p = _summary(hist[-1])
@@ -203,7 +203,7 @@ def test_balance_law_with_fitted_ratios_aligns_with_the_compression_axis():
 
 
 def test_balance_law_with_mean_field_coefficients_reproduces_the_template_failure():
-    # DESIGN: with κa = kc = ko = 1 the fabric ends along the extension axis (θp = 0) and the
+    # docs/theory.md §7: with κa = kc = ko = 1 the fabric ends along the extension axis (θp = 0) and the
     # unprojected law leaves the admissible set (B/A > 1). Here the excursion is projected
     # back — and every projection is counted, never silent.
     hist, projected = fl.drive_fabric(ISO, *_biaxial(2000, 10.0), fl.LAW_BALANCE, 1.0, 1.0, 1.0,

@@ -1,5 +1,5 @@
-"""Robustness of the tier 0/1 update: the zero-dilatancy apex trap (ENGINEERING.md) and
-acceptance 7 (no NaN/inf for extreme inputs; failed points reported, inputs returned)."""
+"""Robustness of the tier 0/1 update: the zero-dilatancy apex trap (docs/theory.md §4) and
+the no-NaN rule (no NaN/inf for extreme inputs; failed points reported, inputs returned)."""
 import numpy as np
 import pytest
 

@@ -276,7 +276,7 @@ def test_single_maximum_certificate_is_sound_and_not_vacuous():
 
 
 def test_softmax_shortfall_scales_as_one_over_sharpness(tier2_prm):
-    # The measured effect of β (DESIGN: "measure the effect of the sharpness parameter"):
+    # The measured effect of β (the effect of the sharpness parameter):
     # f falls short of max h by w_min·Δh <= 0.2785 s/β, attained when Δh = 1.2785 s/β. Build a
     # state with one arc clearly stronger and check the shortfall and the flow's mixing.
     s = stress_at(1.0, 0.45, 0.2)

@@ -3,7 +3,7 @@
 Each benchmark module ``contfab/bench/NAME.py`` exposes ``run(args) -> dict`` of
 named figures; the CLI prints them as a table, or with ``--json`` as one JSON object
 (keys are the figure names) so they can be tracked over time. Timings are medians
-of several repeats: these machines are shared and noisy.
+of several repeats: a shared machine is noisy.
 """
 from __future__ import annotations
 

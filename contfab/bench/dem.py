@@ -1,7 +1,7 @@
 """``contfab bench dem``: particle-steps per second of the DEM on a biaxial stage.
 
-The system (:func:`reference_system`) is the one of the LAMMPS reference quoted in
-issue 2, so a side-by-side run can use the same definition: N = 4000 discs with
+The system (:func:`reference_system`) is defined once, so a side-by-side LAMMPS run can
+use the same definition: N = 4000 discs with
 diameters uniform in [0.8, 1.2], 2D density 1, kn/P0 = 1e3, kt = kn/2, μ = 0.5,
 restitution 0.55, time step 0.05 of the binary contact time of a mean pair, skin 0.2 d,
 biaxial compression at I = 1e-3 with a stress servo on σxx.

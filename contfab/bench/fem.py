@@ -6,7 +6,7 @@ constitutive update (``TierMaterial.update`` and ``spin_tangent``: the update it
 line-search trials and the exact spin tangent), of the assembly (strain, internal force,
 tangent) and of the linear solve (SuperLU factorization and back-solve) is timed;
 the figures are the totals per Newton iteration and their ratios to the solve.
-Goals (issue 5): update + assembly <= 0.5x the solve, and < 8 Newton iterations per
+Goals: update + assembly <= 0.5x the solve, and < 8 Newton iterations per
 step on median. The calls are timed in CPU seconds of this process
 (``time.process_time``; every timed part runs on one thread), so a shared, loaded
 machine does not inflate them; the run is repeated ``--repeats`` times (each run

@@ -14,19 +14,19 @@ process's CPU time (both sides are single-threaded, so this is the per-core figu
 when other jobs share the cores; ``*_wall`` figures give the wall-clock rate too).
 
 Measured (updates/s per core, ``python -m contfab.cli bench model --json`` on the shared 2-core
-machine, 2026-12-02, main at 151b3fc; medians in brackets):
+machine; medians in brackets):
 
 * 5 runs in a row, load 0.4-0.7 (nothing else running):
   tier0 2.53e7, 2.50e7, 2.54e7, 2.56e7, 2.53e7 (2.53e7; 0.35 of the numpy elastic update);
   tier1 8.70e6, 8.71e6, 8.68e6, 8.71e6, 8.71e6 (8.71e6; 0.12);
   tier2 5.69e5, 5.70e5, 5.68e5, 5.70e5, 5.73e5 (5.70e5; 0.0079);
   tier2_aniso 5.48e5, 5.48e5, 5.48e5, 5.48e5, 5.49e5 (5.48e5; 0.0077).
-* 3 runs interleaved with the code before the speed-up (116a88d): tier2 4.34e5, 4.36e5,
+* 3 runs interleaved with the code before the speed-up listed below: tier2 4.34e5, 4.36e5,
   4.31e5 (4.34e5) against 5.81e5, 5.69e5, 5.82e5 (5.81e5): 1.34x; tier2_aniso 4.25e5,
   4.19e5, 4.17e5 (4.19e5) against 5.56e5, 5.47e5, 5.55e5 (5.55e5): 1.32x.
 
-Issue 3's targets (5e6 for tiers 0/1, 5e5 for tier 2) are met, tier 2 by 10-16 %. A load on
-the other core lowers the per-core rate here (2.83e5 at stop 13 at load ~3, 4.1e5 idle, the
+The targets (5e6 for tiers 0/1, 5e5 for tier 2 per core) are met, tier 2 by 10-16 %. A load
+on the other core lowers the per-core rate here (2.83e5 at load ~3 against 4.1e5 idle, the
 same code), so a single figure taken under load can fall below.
 
 What took a tier-2 update from 2.44 to ~1.8 µs (kernel alone on 100 000 of these points,

@@ -1,4 +1,4 @@
-"""``contfab calibrate``: the model's parameters from the embedded DEM (DESIGN §7, issue 4).
+"""``contfab calibrate``: the model's parameters from the embedded DEM (docs/theory.md §12).
 
 1. **DEM campaign** (:mod:`contfab.calibration.campaign`): dense and loose biaxial at the fitted κ,
    simple shear at constant normal stress with a reversal, isotropic compression (fitted);

@@ -5,7 +5,7 @@ A campaign (:class:`CampaignSettings`) is a list of :class:`RunSpec` — a loadi
 a dense (μ_prep = 0) or loose (:data:`dem.job.LOOSE`) sample at a stiffness number
 κ = kn/P0, with a role: ``fit`` (the calibration fits it), ``heldout`` (validation:
 reported, and it chooses the fabric law), ``reference`` (DEM curves for the tests,
-reported) — each run for every seed, plus the stress-probing runs (seed 001 §3 in 2D):
+reported) — each run for every seed, plus the stress-probing runs (Karapiperis et al. 2020, §3, in 2D):
 a loose sample loaded along the biaxial path to ``probe_strain``, held at constant stress
 until its creep has stopped, then probed by a family of load-unload stress probes with a
 zero-increment reference (:class:`dem.paths.ProbeFamily`). In the rigid-grain limit the pressure enters only through
@@ -65,7 +65,7 @@ class RunSpec:
 
 
 def default_runs(kappas=(1e3, 1e4), kappa_heldout=3e3) -> tuple[RunSpec, ...]:
-    """The default campaign (issue 4): dense and loose biaxial at every fitted κ, simple
+    """The default campaign (docs/theory.md §12): dense and loose biaxial at every fitted κ, simple
     shear at constant normal stress with a reversal, isotropic compression (fitted); a
     biaxial at a κ not fitted, an isochoric shear and a 90° change of loading direction
     (held out), and the other standard paths (reference curves, not used to choose)."""
@@ -174,8 +174,8 @@ def _relative(start: str | None, base: FsPath) -> str | None:
 
 
 def _check_same_job(file: FsPath, job: DemJob) -> None:
-    """Refuse a directory made by another job; record this job otherwise. (Records of
-    before 2026-12-02 hold an absolute ``start``: compared as the file it names.)"""
+    """Refuse a directory made by another job; record this job otherwise. (Older records
+    hold an absolute ``start``: compared as the file it names.)"""
     mine = json.loads(json.dumps(job.describe(file.parent)))
     if file.exists():
         theirs = json.loads(file.read_text())
@@ -284,7 +284,7 @@ L = {{ xy = 0.0 }}
 sigma = {{ xx = -1.0, yy = {{ increment = 0.0 }}, yx = {{ increment = 0.0 }} }}
 ''')
     _write_text(layout.probes_path, f'''name = "probes"
-description = "{cs.probe_directions} load-unload stress probes of {cs.probe_magnitude:g} P0 in the (sigma_xx, sigma_yy) plane and a zero-increment reference (seed 001 section 3, in 2D)."
+description = "{cs.probe_directions} load-unload stress probes of {cs.probe_magnitude:g} P0 in the (sigma_xx, sigma_yy) plane and a zero-increment reference (Karapiperis et al. 2020 section 3, in 2D)."
 
 [probes]
 directions = {cs.probe_directions}

@@ -36,7 +36,7 @@ from dem.conventions import fabric_polar
 from dem.paths import Path
 
 QUANTITIES = ("RP", "eps_v", "c", "A", "B", "theta_p")
-"""Quantities compared and plotted (DESIGN: R/P, ε_v, c, A, B, θp)."""
+"""Quantities compared and plotted (R/P, ε_v, c, A, B, θp; docs/theory.md §12)."""
 SAMPLED = ("RP", "eps_v", "c", "A", "Bc", "Bs", "sxx", "syy", "sxy", "eps_xx", "eps_yy", "eps_xy")
 """Columns interpolated onto a grid (B and θp derive from Bc, Bs)."""
 FABRIC = ("A", "B", "theta_p")

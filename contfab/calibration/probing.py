@@ -1,11 +1,12 @@
-r"""Stress probing (seed 001 §3, in 2D): the plastic strain direction and the yield-surface
-normal at a state on the yield surface, and the non-associativity angle between them.
+r"""Stress probing (Karapiperis et al. 2020, §3, in 2D): the plastic strain direction and the
+yield-surface normal at a state on the yield surface, and the non-associativity angle between
+them (docs/theory.md §12).
 
 A probe family with unloading and a hold reference (:class:`dem.paths.ProbeFamily`,
 ``unload = true, hold = true``) is run from one state, by the DEM or by the material point.
 Each probe k ramps the stress by Δσ_k = m (cos β_k, sin β_k) in the (σxx, σyy) plane
-(σxy held) and back. Following Bardet (1994) as seed 001 §3.3.1 does, the strain left
-after unloading is the plastic strain, and the elastic strain is the rest:
+(σxy held) and back. Following Bardet (1994) as Karapiperis et al. (2020, §3.3.1) do, the
+strain left after unloading is the plastic strain, and the elastic strain is the rest:
 
     Δε_k  = ε(end of loading) - ε(start) - [same for the hold probe]
     Δεp_k = ε(end of unloading) - ε(start) - [same for the hold probe]
@@ -14,8 +15,8 @@ after unloading is the plastic strain, and the elastic strain is the rest:
 
 For an elastic-plastic material with yield normal n and flow direction m (both unit
 vectors in the (xx, yy) plane; stress and strain spaces paired by σxx εxx + σyy εyy),
-Δεp = m (n·Δσ)₊ / H: the plastic strains share one direction (seed 001: an approximately
-unique plastic strain direction), and their size along it, p_k = Δεp_k · m, follows
+Δεp = m (n·Δσ)₊ / H: the plastic strains share one direction (Karapiperis et al. 2020: an
+approximately unique plastic strain direction), and their size along it, p_k = Δεp_k · m, follows
 a (n·Δσ_k/|Δσ_k|)₊. So
 
 * flow direction m: the direction of Σ_k Δεp_k over the probes whose plastic strain is at
@@ -23,12 +24,12 @@ a (n·Δσ_k/|Δσ_k|)₊. So
 * yield normal n = (cos β_n, sin β_n): the least-squares fit of p_k ≈ a max(0, cos(β_k - β_n))
   over every probe (a >= 0 in closed form for each β_n, β_n by a grid then a bounded
   scalar minimization): "the locus of stress states of the same plastic strain norm"
-  (seed 001 §3.3.1) in incremental form;
+  (Karapiperis et al. 2020, §3.3.1) in incremental form;
 * non-associativity angle δ = β_n - angle(m), wrapped to (-180°, 180°]; δ = 0 for an
   associated flow rule.
 
 For the isotropic cone (tiers 0/1) at a biaxial state σxy = 0, σyy < σxx:
-n ∝ (1 + sin φ, -1 + sin φ) and m ∝ (1 + sin ψ, -1 + sin ψ) (DESIGN §4), so δ follows in
+n ∝ (1 + sin φ, -1 + sin φ) and m ∝ (1 + sin ψ, -1 + sin ψ) (docs/theory.md §4), so δ follows in
 closed form (:func:`cone_angles`); the tests check the probe analysis against it.
 """
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The scikit-fem boundary-value solver (DESIGN §8).
+"""The scikit-fem boundary-value solver (docs/theory.md §13).
 
 Modules, bottom to top: :mod:`mesh` (meshes, named boundaries, validation),
 :mod:`elements` (element families and quadrature), :mod:`assembly` (strain,

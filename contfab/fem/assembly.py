@@ -1,6 +1,6 @@
 """Strain, internal force and tangent from per-quadrature-point arrays.
 
-Small-strain kinematics in Voigt form with engineering shear (DESIGN §2,
+Small-strain kinematics in Voigt form with engineering shear (docs/theory.md §1,
 :mod:`contfab.tensors`): at a quadrature point of element e,
 
     (exx, eyy, gxy)  = B u_e,     gxy = ∂ux/∂y + ∂uy/∂x

@@ -1,4 +1,4 @@
-"""The model tiers behind the solver's material interface (the update contract, DESIGN §4).
+"""The model tiers behind the solver's material interface (update contract: docs/theory.md §3).
 
 :class:`TierMaterial` calls :func:`contfab.models.tiers.update` over the quadrature points
 and hands the solver their stress, state, tangent and status. One tier everywhere, or

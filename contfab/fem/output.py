@@ -4,7 +4,7 @@ Every file is written through :func:`dem.fileio.atomic_path` (never half-written
 the ``.pvd`` collection is rewritten after each frame, so an interrupted run leaves
 a valid series of the frames written so far.
 
-Fields of a frame (tension positive, DESIGN §2): point data ``displacement`` at the
+Fields of a frame (tension positive, docs/theory.md §1): point data ``displacement`` at the
 mesh vertices; cell data (area-weighted means over each element's quadrature
 points) ``stress`` (symmetric tensor xx, yy, zz, xy, yz, xz with zz = yz = xz = 0),
 ``P`` = -(sxx+syy)/2, ``R_over_P`` = R/P (sin of the mobilized friction angle; 0

@@ -1,6 +1,6 @@
 """Full Newton with the consistent tangent, automatic step cutting and growth.
 
-Equilibrium in residual form, tension-positive stress (DESIGN §2):
+Equilibrium in residual form, tension-positive stress (docs/theory.md §13):
 
     r(u) = f_int(σ(u)) - f_ext(t) = 0   on the free DOFs,
     u = ū(t)                            on the constrained DOFs,

@@ -1,1 +1,1 @@
-"""FE×DEM: a DEM cell at every quadrature point of the FEM solver (issue 8)."""
+"""FE×DEM: a DEM cell at every quadrature point of the FEM solver."""

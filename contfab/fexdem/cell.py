@@ -2,7 +2,7 @@
 
 A quadrature point's increment (Δεxx, Δεyy, Δγxy = 2Δεxy) and spin Δω =
 (L_yx - L_xy)/2 · Δt (counter-clockwise, :mod:`contfab.models.tiers`) become the
-velocity-gradient increment of the periodic cell (DESIGN §5, L_xy = ∂vx/∂y)
+velocity-gradient increment of the periodic cell (docs/theory.md §10, L_xy = ∂vx/∂y)
 
     ΔL = (Δεxx, Δεyy, Δγxy/2 - Δω, Δγxy/2 + Δω)        (xx, yy, xy, yx),
 
@@ -13,14 +13,14 @@ L = ΔL / (n dt), so the cell receives exactly ΔL (to round-off) at a rate ≤ 
 The stage has length n·dt·I in reference strain τ and rates ΔL/(n dt I), and it
 continues from the forces of the cell's last step (:func:`start_cell` evaluates them
 once, on the fresh clone), so a stand-alone :class:`dem.rve.PathRunner` given the
-same stages as one path takes bitwise the same steps (acceptance 1 of issue 8).
+same stages as one path takes bitwise the same steps (tests/test_fexdem.py).
 
 The cell is then held (L = 0) until quasi-static equilibrium,
 :func:`dem.prepare.relaxed`: unbalanced force ratio < ``force_tol`` and kinetic /
 elastic energy < ``kinetic_tol``, checked every ``check_every`` steps up to
 ``relax_budget`` steps, else :class:`CellNotRelaxed`. ``force_tol = inf`` skips the
 relaxation. The result is the Love–Weber stress (units of P0, tension positive) and
-the state (c, A, Bc, Bs) (DESIGN §3).
+the state (c, A, Bc, Bs) (docs/theory.md §2).
 
 :func:`cell_tangent` is the cell's own incremental stiffness at an increment Δe, by
 one-sided differences of the same map from the same committed state:

@@ -59,7 +59,7 @@ TANGENT = "dem"
 CELL_OPTIONS = CellOptions(force_tol=float("inf"), kinetic_tol=float("inf"))
 """The cells follow the increments at the campaign's inertial number I = 1e-3 without a
 hold: the tiers were calibrated on continuous I = 1e-3 DEM paths (default_params.toml
-[provenance.campaign]), and a cell run so is bitwise such a path (acceptance 1). A hold
+[provenance.campaign]), and a cell run so is bitwise such a path (:mod:`contfab.fexdem.cell`). A hold
 until equilibrium (force_tol finite) relaxes the stress by a number of steps that
 jumps in multiples of ``check_every`` with the increment: measured, near the peak the
 Newton residual then cycled at 1e-3..1e-1 and the step could not be completed."""
@@ -114,7 +114,7 @@ def _rel_l2(w: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
 
 
 def _mobilized(s: np.ndarray) -> np.ndarray:
-    """R/P per point (DESIGN §2)."""
+    """R/P per point (docs/theory.md §1)."""
     return np.hypot(0.5 * (s[:, 0] - s[:, 1]), s[:, 2]) / (-0.5 * (s[:, 0] + s[:, 1]))
 
 

@@ -1,4 +1,4 @@
-"""The FEM material "tier" ``dem``: one DEM cell per quadrature point (issue 8).
+"""The FEM material "tier" ``dem``: one DEM cell per quadrature point.
 
 :class:`DemMaterial` follows the solver's update contract
 (:class:`contfab.fem.solver.Material`): ``update(stress_n, state_n, dstrain, dspin)``

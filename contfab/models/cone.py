@@ -1,13 +1,13 @@
 r"""Tiers 0 and 1: backward-Euler return on the circular Mohr–Coulomb cone, with its apex.
 
-Conventions (DESIGN §2): tension positive, P = -(σxx+σyy)/2, R = sqrt(((σxx-σyy)/2)² + σxy²),
+Conventions (docs/theory.md §1): tension positive, P = -(σxx+σyy)/2, R = sqrt(((σxx-σyy)/2)² + σxy²),
 Voigt stress (σxx, σyy, σxy), Voigt strain with engineering shear (εxx, εyy, γxy).
 
-**Model** (DESIGN §4, seed 000 §3–§4). Yield f = R - sin φ·P <= 0 (a cone: no stress
+**Model** (docs/theory.md §4–§5; Roux & Radjaï 2001, §3–§4). Yield f = R - sin φ·P <= 0 (a cone: no stress
 scale); plastic potential g = R - sin ψ·P, non-associated for ψ ≠ φ. The flow
 Δεp = Δγ ∂g/∂σ is coaxial with σ, with principal values Δεp1 - Δεp2 = Δγ and
-tr Δεp = Δγ sin ψ (seed eq. 1.2). Tier 0: φ, ψ constant. Tier 1: φ(c), ψ(c) from
-:func:`friction_angles`, and c_{n+1} = c_n exp(-tr Δεp) (seed eq. 1.4, integrated
+tr Δεp = Δγ sin ψ (eq. 1.2 there). Tier 0: φ, ψ constant. Tier 1: φ(c), ψ(c) from
+:func:`friction_angles`, and c_{n+1} = c_n exp(-tr Δεp) (eq. 1.4 there, integrated
 exactly over the step).
 
 **Update** of one point, stress σ_n, increments (Δε, Δω):
@@ -42,8 +42,8 @@ explicit for given y, so one scalar equation remains,
 solved by Newton safeguarded by bisection on the bracket c_{n+1} between c_n and c*
 (y between 0 and y* = ln(c*/c_n)): H < 0 at one end and > 0 at the other because
 ψ(c*) = 0 and φ, ψ do not decrease with c (checked on load), and every root in it has
-Δγ > 0. No step divides by sin ψ, so ψ = 0 is not special (the ENGINEERING "zero
-cohesion, zero dilatancy" trap). The apex is tested first: it has
+Δγ > 0. No step divides by sin ψ, so ψ = 0 is not special (the "zero
+cohesion, zero dilatancy" trap of cone returns). The apex is tested first: it has
 c_{n+1} = c_n exp(P_tr/K) in closed form.
 
 **Consistent tangent** ∂σ_{n+1}/∂Δε (not including Δω), exact on every branch:
@@ -51,7 +51,7 @@ elastic C; face: differentiating P(P_tr, R_tr, y), R = sin φ P and the rotation
 (weight R/R_tr) — non-symmetric for ψ ≠ φ; for tier 1 y is differentiated through
 H = 0 (implicit function theorem). Apex: the tangent is **zero** — the exact derivative,
 since σ ≡ 0 in the interior of the apex region. A separated region has no stiffness;
-that is physics, and a boundary-value solver needs its own device there (DESIGN §8).
+that is physics, and a boundary-value solver needs its own device there (docs/theory.md §13).
 Round-off near the face/apex boundary (ψ = 0: the boundary is P_tr = 0, where an
 isochoric increment from σ = 0 lands): trial states within a band of relative width
 APEX_BAND of the boundary return σ = 0 (status 2) but the face's one-sided limit

@@ -1,7 +1,7 @@
 r"""Fabric hardening of tier 2: how (A, Bc, Bs) evolve with the plastic strain increment.
 
-State (DESIGN §3): the contact-normal density p(θ) = A + Bc cos 2θ + Bs sin 2θ on [0, π),
-A = z/π, (Bc, Bs) = B (cos 2θp, sin 2θp). Admissible set K (seed 000 eqs 1.14-1.15):
+State (docs/theory.md §2): the contact-normal density p(θ) = A + Bc cos 2θ + Bs sin 2θ on [0, π),
+A = z/π, (Bc, Bs) = B (cos 2θp, sin 2θp). Admissible set K (Roux & Radjaï 2001, eqs 1.14–1.15):
 0 <= B <= A and (π/6) A + (√3/4) B <= 1. The increment D = Δεp is given in Voigt form
 with engineering shear (Δεxx, Δεyy, Δγxy); on a direction θ, d_n = n·D·n and d_t = t·D·n,
 so d_n = m + dx cos 2θ + dy sin 2θ with m = tr D / 2, dx = (Δεxx - Δεyy)/2, dy = Δγxy/2,
@@ -10,7 +10,8 @@ and d_t = -dx sin 2θ + dy cos 2θ (tension positive: d_n > 0 where neighbours r
 **Spin** (:func:`rotate_fabric`): a rigid rotation by Δω turns θp by Δω and leaves A and B
 unchanged: (Bc, Bs) is rotated by 2Δω exactly. Applied before either law.
 
-**Law 0, the projected balance law** (seed 000 §8, DESIGN §4). ∂p/∂t + ∂θ J = I+ - I- with
+**Law 0, the projected balance law** (docs/theory.md §7; Roux & Radjaï 2001, §8).
+∂p/∂t + ∂θ J = I+ - I- with
 
     J  = κa p d_t                                   (advection by the flow)
     I+ = kc (4c/π) S(θ) [-d_n]+                      (creation where neighbours approach)

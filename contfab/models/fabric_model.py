@@ -1,6 +1,6 @@
 r"""Tier 2: slip-plane yield, plane-wise flow, fabric hardening — the return mapping.
 
-Conventions (DESIGN §2): tension positive, Voigt stress (σxx, σyy, σxy), Voigt strain with
+Conventions (docs/theory.md §1): tension positive, Voigt stress (σxx, σyy, σxy), Voigt strain with
 engineering shear, spin increment Δω counter-clockwise. State columns (gp, c, A, Bc, Bs).
 Yield f and flow N: :mod:`contfab.models.slip_planes`; fabric laws:
 :mod:`contfab.models.fabric_law`.
@@ -50,8 +50,8 @@ Yield f and flow N: :mod:`contfab.models.slip_planes`; fabric laws:
    and a plane a step took past an end otherwise stalled the solve.
 5. Apex (status 2): σ = 0, all of C⁻¹σ_tr plastic, c = c_n exp(P_tr/K), zero tangent
    (as tier 1), where C⁻¹σ_tr dilates at least as much as the admissible flow of its
-   direction: the region is set by the plastic potential, not the yield function (DESIGN
-   §4). With φ and ψ the same on every plane (a2 = b2 = 0) that is tier 1's criterion
+   direction: the region is set by the plastic potential, not the yield function
+   (docs/theory.md §4). With φ and ψ the same on every plane (a2 = b2 = 0) that is tier 1's criterion
    G P_tr + K sin ψ R_tr <= 0 (P <= 0 of its closed-form return), with ψ(θ)'s isotropic part
    at c_apex. Otherwise the flow's dilatancy depends on its direction (over the face of the
    start state of tests/test_fabric_model.py ``NEAR_APEX_FLICKER``, B/A = 0.64, tr/(ε1 - ε2)
@@ -79,7 +79,7 @@ start, the scan's included, where the scan does not put the trial at the apex, a
 result. The point returns its input stress
 and state and the elastic tangent; nothing non-finite is produced.
 
-A step past a limit point of the regularized model fails too, by design. f's fabric
+A step past a limit point of the regularized model fails too, deliberately. f's fabric
 derivatives grow with |σ| and the elastic part of the return, ∂f/∂σ C N, with K and G: at
 stresses of order the moduli (P ~ 3 K, far above p_ref) the fabric's evolution can raise f
 as fast as the flow relaxes the stress, and the strain-driven response itself reaches a
@@ -101,7 +101,7 @@ step, the face point's check (``_resolved``), and of the callees
 ``slip_planes.yield_and_flow`` with ``plane_terms`` and ``fabric_law.relaxation_step`` (inside
 ``fabric_step``). Each call of these passed the
 scratch's arrays as a dozen fields apiece; inlining them took the bench's tier-2 update
-from 3.3 to 2.8 µs, outputs bitwise unchanged (measured, 2026-12-02). Inlining the plane
+from 3.3 to 2.8 µs, outputs bitwise unchanged (measured). Inlining the plane
 search too (``yield_value``, ``arc_maxima``, ``_refine_on_arc``, ``_h_on_arc``) and the
 start (``_cutting_plane_guess``) gained ~2 % more for a cold compile of 2.5 min instead of
 1.5: not done.
@@ -1148,7 +1148,7 @@ def _scan_return(c_n, qn, c_apex, prm, sc, s_ref):
     face solve (:func:`_scan_face`); roots with Δγ <= 0 (flows running backwards) are not
     returns.
 
-    **The apex** (σ = 0, Δεp = C⁻¹σ_tr, DESIGN §4: its region is set by the plastic
+    **The apex** (σ = 0, Δεp = C⁻¹σ_tr, docs/theory.md §4: its region is set by the plastic
     potential, because the flow is non-associated): a root with Δγ > 0 and P <= 0 says that
     C⁻¹σ_tr = Δγ N + |P| C⁻¹(-σ̂): the trial strain is the admissible flow N of its plane
     plus the strain of taking a compression |P| σ̂ off (a dilation of |P|/K), so it dilates
@@ -1168,7 +1168,7 @@ def _scan_return(c_n, qn, c_apex, prm, sc, s_ref):
 
     Cost: ~SCAN_POINTS + 20 solves for ρ, each a few searched evaluations of f and N: about
     0.25 ms per trial with the shipped parameters, paid only where the other starts failed
-    and by the trials tier 1's criterion puts at the apex. Measured (2026-12-02, 2000 points
+    and by the trials tier 1's criterion puts at the apex. Measured (2000 points
     at σ_n = 0 with B/A = 0.25 under dilating increments, 72 % at the apex): 0.17 ms per
     update, 6.7 µs before the scan (whose apex came from tier 1's criterion directly).
     """

@@ -1,4 +1,4 @@
-r"""Tier 2 yield function and flow over slip planes (seed 000 §5, DESIGN §4).
+r"""Tier 2 yield function and flow over slip planes (docs/theory.md §6; Roux & Radjaï 2001, §5).
 
 Conventions: tension positive, Voigt stress (σxx, σyy, σxy), Voigt strain with engineering
 shear. A slip plane has normal n(θ) = (cos θ, sin θ) and tangent t(θ) = (-sin θ, cos θ);
@@ -7,7 +7,7 @@ shear. A slip plane has normal n(θ) = (cos θ, sin θ) and tangent t(θ) = (-si
 
 **Friction and dilatancy per plane.** With (Bc, Bs) the fabric and c the packing fraction,
 
-    φ(θ) = a0 + φ'(c - c*) + a1 A + a2 B cos(2(θ - θp) + a3)      (seed eq. 1.8 + tier 1's c-term)
+    φ(θ) = a0 + φ'(c - c*) + a1 A + a2 B cos(2(θ - θp) + a3)      (eq. 1.8 there + tier 1's c-term)
     ψ(θ) = b0 + ψ'(c - c*) + b1 A + b2 B cos(2(θ - θp) + b3)
 
 clamped like tier 1 (φ to [φ_min, φ_max], then ψ to [-φ, φ]). B cos(2(θ-θp) + a3) =
@@ -35,7 +35,7 @@ N = g cos ψ̂ ∂τ/∂σ + sin ψ̂ ∂σn/∂σ (trace sin ψ̂, Δε1 - Δε
 flow is N = Σ_k w_k N(θ_k) with the yield's weights: coaxial at isotropy (the two conjugate
 planes weigh equally), one plane dominating under strong anisotropy (non-coaxial flow).
 
-ψ(θ) keeps tier 1's meaning — the dilatancy sin ψ = tr/(ε1 - ε2) (seed eq. 1.2) of the
+ψ(θ) keeps tier 1's meaning — the dilatancy sin ψ = tr/(ε1 - ε2) (eq. 1.2 there) of the
 symmetric double slip on the planes θ and its conjugate. Averaging two conjugate planes at
 ±(π/4 - φ/2) cancels part of their deviators, so a plane slip angle equal to ψ would give
 sin ψ_macro = sin ψ / cos(φ - ψ) (+6 % at φ = 30°, ψ = 10°). The plane's slip angle ψ̂ is

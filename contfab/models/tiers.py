@@ -1,4 +1,4 @@
-"""The one constitutive-update interface for every model tier (DESIGN §4).
+"""The one constitutive-update interface for every model tier (docs/theory.md §3).
 
     result = update(tier, stress_n, state_n, dstrain, dspin, params)
 
@@ -38,7 +38,7 @@ STATE_NAMES: dict[int, tuple[str, ...]] = {
 }
 """State columns of each tier. gp: accumulated plastic shear strain Σ(Δεp1 - Δεp2)
 (output only); c: the hardening packing fraction c_p (:func:`packing_fraction`); (A, Bc, Bs):
-fabric state (DESIGN §3)."""
+fabric state (docs/theory.md §2)."""
 
 KERNELS = {
     0: cone.update_points_tier0,
@@ -57,12 +57,12 @@ STATUS_NAMES = {cone.STATUS_ELASTIC: "elastic", cone.STATUS_FACE: "plastic",
 
 
 def packing_fraction(c_p, pressure, params: Params):
-    r"""The packing fraction c = disc area / cell area (DESIGN §2: ċ/c = -tr ε̇) of a state
+    r"""The packing fraction c = disc area / cell area (docs/theory.md §1: ċ/c = -tr ε̇) of a state
     whose hardening variable is c_p, at pressure P (scene units):
 
         c = c_p exp((P - p_ref) / K),   K = E_reg / (2(1 - ν)) (the regularization's bulk modulus).
 
-    The hardening law (DESIGN §4, tier 1) moves c_p with the *plastic* volume change,
+    The hardening law (docs/theory.md §5) moves c_p with the *plastic* volume change,
     ċ_p/c_p = -tr ε̇p; the total volume change adds the elastic one of the regularization,
     tr ε̇ - tr ε̇p = -Ṗ/K exactly (the update's volumetric part: P = P_tr + K tr Δεp), so
     c/c_p = exp((P - P_s)/K) for a start at pressure P_s where both agree. Identifying c_p
@@ -70,7 +70,7 @@ def packing_fraction(c_p, pressure, params: Params):
     makes this a function of the state, so a continued run or an FEM point needs no
     history. c_p is the packing fraction the material would have if brought elastically to
     p_ref: the rigid-grain one, as the regularization's elastic strain plays the part of
-    the DEM's contact compliance (overlaps). Why this matters (a measurement, issue 4):
+    the DEM's contact compliance (overlaps). Why this matters (a measurement):
     in isochoric shear the DEM keeps c fixed exactly, while c_p of a dense state dilates
     plastically toward c* (0.835 -> 0.805 measured) as P rises; compared with the DEM's
     c, c_p was wrong by 0.03 and c is exact. The two differ by (P - p_ref)/K ~ 1/λ

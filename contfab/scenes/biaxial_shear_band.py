@@ -1,6 +1,6 @@
 """Plane biaxial test of a dense specimen with rough platens: peak, softening, shear band.
 
-Scene (DESIGN §8). A specimen W × H = 1 × 2.5, confining pressure p0 on both sides (dead
+Scene (docs/theory.md §13). A specimen W × H = 1 × 2.5, confining pressure p0 on both sides (dead
 load), rough rigid platens (ux = 0 on top and bottom; the bottom is fixed, the top moves
 down by δ·t). Model tier 1 (φ(c), ψ(c) around the critical state c*), dense: c0 =
 c* + Δc (default Δc = 0.03, the parameter file's φ', ψ' give φ(c0), ψ(c0)); a small

@@ -1,6 +1,6 @@
 """Smooth rigid wall translating away from / into a cohesionless backfill: K_a and K_p.
 
-Scene (DESIGN §8). Backfill x ∈ [0, L], y ∈ [-H, 0] of unit weight γ, L = 4H; the wall
+Scene (docs/theory.md §13). Backfill x ∈ [0, L], y ∈ [-H, 0] of unit weight γ, L = 4H; the wall
 is the side x = 0 over the full height H. Smooth wall (uy free), rough fixed base
 (ux = uy = 0), far side x = L on rollers (ux = 0). With a rough base the soil cannot
 follow the wall homogeneously: a Rankine/Coulomb wedge forms from the wall's foot. A geostatic stage

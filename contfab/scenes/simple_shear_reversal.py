@@ -1,6 +1,6 @@
 """A granular layer sheared to γ = 1 and reversed to γ = -1: tier 1 vs tier 2 vs the DEM.
 
-Scene (DESIGN §8). A layer W × H = 1 × 1 in ideal simple shear: the base is fixed, every
+Scene (docs/theory.md §13). A layer W × H = 1 × 1 in ideal simple shear: the base is fixed, every
 point moves by ux = γ y (the rough top platen drives γ, the rigid rings or hinged walls
 of a simple-shear apparatus keep the layer from bulging), and the height changes
 uniformly, uy = (y/H) v with v the platen's settlement, under the constant normal
@@ -17,7 +17,7 @@ forward stage, γ = 1 - (τ - 1) on the reverse stage, L_xy = dγ/dτ = ±1 thro
 the spin increment -Δγ/2 reaches the update as in the DEM cell.
 
 Measured: τ/σn = σxy/(-σyy), σxy the horizontal force of the top platen on the layer
-per unit width (the reaction, DESIGN §8), σyy the mean vertical stress; the volumetric
+per unit width (the reaction, docs/theory.md §13), σyy the mean vertical stress; the volumetric
 strain ε_v = v/H; the packing fraction c and, for tier 2, the fabric (B, θp), as means
 over the quadrature points. The homogeneous layer must reproduce the material-point
 driver on the same path (:func:`contfab.material_point.run_path`, tier 1): reported as

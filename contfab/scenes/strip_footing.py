@@ -1,6 +1,6 @@
 """Rigid rough strip footing on a cohesionless cone: N_q and N_γ against exact solutions.
 
-Scene (half model, symmetric about x = 0; DESIGN §8). A footing of half-width b = B/2 = 1
+Scene (half model, symmetric about x = 0; docs/theory.md §13). A footing of half-width b = B/2 = 1
 on the surface y = 0 of a soil block x ∈ [0, L], y ∈ [-H, 0], with L and H set from the
 size of the Prandtl mechanism of φ (:func:`mechanism_size`) so that the failure zone
 stays inside. Rollers on x = 0 (symmetry) and x = L, fixed base. The footing is rigid and

@@ -1,4 +1,4 @@
-"""Numerical stability at the extremes (issue 7): a declarative matrix per component.
+"""Numerical stability at the extremes: a declarative matrix per component.
 
 :mod:`.core` judges one point (PASS / ACCURACY_LOST / CLEAR_ERROR / FAIL);
 :mod:`.dem_matrix`, :mod:`.point_matrix`, :mod:`.fem_matrix` declare the points of the

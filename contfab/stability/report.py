@@ -1,7 +1,7 @@
 """Run the stability matrix and write ``stability.csv`` and ``stability.png``.
 
-Each component's points run serially in one child process (``spawn``: no fork after
-numba's threading layer, ENGINEERING.md) that reports every outcome as it finishes. The
+Each component's points run serially in one child process (``spawn``: a process forked after
+numba's threading layer has started can hang) that reports every outcome as it finishes. The
 parent waits at most a point's time budget (plus :data:`STARTUP_S` for the child's import
 and kernel loading) for each; a point that exceeds it is a hang: the child is killed, the
 point recorded as FAIL, and a new child resumes at the next point. So a hang never stops

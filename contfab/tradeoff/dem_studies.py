@@ -1,4 +1,4 @@
-"""DEM studies: cell size N, inertial number I, stiffness number κ (DESIGN §2, §6).
+"""DEM studies: cell size N, inertial number I, stiffness number κ (docs/theory.md §1, §11).
 
 Every point prepares a loose sample (μ_prep = μ = 0.5, so it reaches the critical state
 without a peak) of N discs (diameters uniform in [0.8, 1.2]) at P0 = 1 and runs biaxial
@@ -11,8 +11,8 @@ Cost: CPU time of the test (preparation excluded, reported separately) per unit 
   to the grand mean (B: relative to the mean A), i.e. the size of the fluctuations a single
   run shows; the seed-to-seed standard deviation of the window means is reported too. The
   exponent β of scatter ∝ N^-β is fitted by least squares in log-log with its standard
-  error (expected 1/2 for intensive averages of N weakly correlated contributions; seed 002
-  reports ∝ 1/M for its fabric-trace averages).
+  error (expected 1/2 for intensive averages of N weakly correlated contributions; Madadi
+  et al. 2004 report ∝ 1/M for its fabric-trace averages).
 * ``dem_inertial`` and ``dem_stiffness``: the steady means of R/P, c and z against the
   quasi-static limit I → 0 (fit x = x0 + b I) and the rigid limit κ → ∞ (fit x = x∞ + b/κ)
   over the :data:`LIMIT_FIT_POINTS` settings nearest the limit; error = |x - x_lim| / |x_lim|. The seed-to-seed scatter of the means is

@@ -10,9 +10,7 @@ a multi-stage path (the reversal) the RMS of R/P over the first 0.1 strain after
 reversal (``RP_transient``). Cost: CPU µs per material-point increment.
 
 Two studies, tiers 0, 1 and 2 each: ``tier_biaxial`` (monotonic: biaxial compression) and
-``tier_reversal`` (simple shear with reversal; tier 2 joined it on 2026-12-01, once its
-local solve from the DEM's anisotropic start fabric was fixed: it had not finished this
-path in 200 s of CPU). Their DEM reference is small (``--fast``: N = 100, one seed); the
+``tier_reversal`` (simple shear with reversal, started from the DEM's anisotropic fabric). Their DEM reference is small (``--fast``: N = 100, one seed); the
 bounds :mod:`contfab.selection.auto_tier` chooses from come from the calibration campaign
 instead (N = 1000, 3 seeds).
 """
