@@ -125,8 +125,8 @@ def force_anisotropy(normals: np.ndarray, fn: np.ndarray, ft: np.ndarray) -> dic
         return out
     nx, ny = normals[:, 0], normals[:, 1]
     # cos 2θ, sin 2θ of the unit normals
-    design = np.stack([np.ones_like(nx), nx * nx - ny * ny, 2.0 * nx * ny], axis=1)
-    (f0, pn, qn), (_, pt, qt) = np.linalg.lstsq(design, np.stack([fn, -ft], axis=1),
+    basis = np.stack([np.ones_like(nx), nx * nx - ny * ny, 2.0 * nx * ny], axis=1)
+    (f0, pn, qn), (_, pt, qt) = np.linalg.lstsq(basis, np.stack([fn, -ft], axis=1),
                                                  rcond=None)[0].T
     if not f0 > 0.0:
         return out

@@ -344,12 +344,12 @@ def dilatancy_fits(runs: list[tuple[dict, dict, dict]], rows_from: str = "all") 
     a_star = float(np.concatenate(steady_al).mean())
     c_star = float(np.concatenate(steady_c).mean())
     one = np.ones_like(rp)
-    designs = {"rowe": ([rp, one], ("k", "-kM")),
+    regressions = {"rowe": ([rp, one], ("k", "-kM")),
                "alignment": ([al - a_star, one], ("k_f", "d0")),
                "fabric": ([rp, al - a_star, one], ("k", "k_f", "-kM")),
                "state": ([rp, al - a_star, c - c_star, one], ("k", "k_f", "k_c", "-kM"))}
     out = []
-    for name, (cols, names) in designs.items():
+    for name, (cols, names) in regressions.items():
         x = np.stack(cols, axis=1)
         coef, *_ = np.linalg.lstsq(x, y, rcond=None)
         res = y - x @ coef
