@@ -32,12 +32,14 @@ from pathlib import Path
 
 import numpy as np
 
+from contfab.executor import WORKER_ENV
 from contfab.fem import analysis
 from contfab.fem.material import TierMaterial
 from contfab.fem.solver import NewtonOptions, Solver
 from contfab.fexdem.backends import DaskCells, ProcessCells, SerialCells
 from contfab.fexdem.cell import CellOptions
 from contfab.fexdem.material import STATE_NAMES, DemMaterial, FexdemSolver
+from contfab.fexdem.profile import costs
 from contfab.fexdem.scenes import build
 from contfab.models import tiers
 from contfab.params import Params
@@ -73,20 +75,23 @@ CASES = {
 
 
 def make_cells(backend: str, prepared: str, n: int, options: CellOptions, workers: int,
-               address: str | None, ckdir: Path, progress: bool, resume: bool = False):
-    """The cell backend by name: serial, process (``workers``), dask (``address`` or local);
-    ``resume``: the cells restart from their checkpoints in ``ckdir``."""
+               address: str | None, ckdir: Path, progress: bool, resume: bool = False,
+               blocks: int | None = None, layout: str = "interleaved"):
+    """The cell backend by name: serial, process (``workers``), dask (``address`` or local;
+    ``blocks`` actors, default one per worker); ``resume``: the cells restart from their
+    checkpoints in ``ckdir``."""
     if backend == "serial":
         return SerialCells(prepared, n, options, ckdir, resume, progress=progress)
     if backend == "process":
-        return ProcessCells(prepared, n, options, workers, ckdir, resume, progress=progress)
+        return ProcessCells(prepared, n, options, workers, ckdir, resume, progress=progress,
+                            layout=layout)
     if backend == "dask":
         from distributed import Client, LocalCluster
         cluster = None if address else LocalCluster(n_workers=workers, threads_per_worker=1,
-                                                   dashboard_address=None)
+                                                   dashboard_address=None, env=dict(WORKER_ENV))
         client = Client(address or cluster)
-        cells = DaskCells(prepared, n, options, client, ckdir=ckdir, resume=resume,
-                          progress=progress)
+        cells = DaskCells(prepared, n, options, client, blocks, ckdir=ckdir, resume=resume,
+                          progress=progress, layout=layout)
         cells.owned = (client, cluster)
         return cells
     raise ValueError(f"backend {backend!r} unknown; accepted serial, process, dask")
@@ -129,7 +134,7 @@ def field_errors(disc, ref_stress, ref_c, stress, c) -> dict:
 def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1.0,
         backend: str = "serial", workers: int = 2, address: str | None = None,
         options: CellOptions = CELL_OPTIONS, progress: bool = True, resume: bool = False,
-        **overrides) -> dict:
+        blocks: int | None = None, layout: str = "interleaved", **overrides) -> dict:
     """Run ``case`` three ways and write the report (see the module doc); returns it."""
     if case not in CASES:
         raise ValueError(f"case {case!r} unknown; accepted {sorted(CASES)}")
@@ -144,7 +149,7 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
     curves, finals = {}, {}
     t0 = time.perf_counter()
     cells = make_cells(backend, prepared, disc.npoints, options, workers, address, out / "cells",
-                       progress, resume)
+                       progress, resume, blocks, layout)
     try:
         mat = DemMaterial(cells, disc, params, p_unit=p0, tangent=TANGENT,
                           tangent_tier=params.tier if params.tier in (1, 2) else 2)
@@ -173,12 +178,15 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
         report["cell_modulus_P0"] = mat.modulus
         report["dem_steps_per_cell"] = {"strain": int(mat.cell_steps[0]), "relax": int(mat.cell_steps[1])}
         report["recoveries"] = cells.recoveries
+        report["profile"] = costs(cells, out / "profile.npz")
     finally:
         cells.close()
         for owned in getattr(cells, "owned", ()):
             if owned is not None:
                 owned.close()
     report["runs"]["dem"] = _summary(res, solver, time.perf_counter() - t0)
+    report["profile"]["startup_and_outputs_s"] = (report["runs"]["dem"]["wall_s"]
+                                                  - report["profile"]["stage_s"])
     curves["dem"], finals["dem"] = res, solver.committed
     for tier in (1, 2):
         tmat = TierMaterial(params.replace("regularization", p_ref=p0), tier)

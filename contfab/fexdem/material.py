@@ -44,6 +44,7 @@ import numpy as np
 
 from contfab.fem.solver import ConvergenceError, FieldState, NewtonOptions, Solver, StepRecord
 from contfab.fexdem.cell import CellOptions, advance_cell, measure_cell, start_cell
+from contfab.fexdem.profile import Ledger
 from contfab.models import tiers
 from contfab.params import Params
 from contfab.tensors import isotropic_stiffness
@@ -117,6 +118,10 @@ class DemMaterial:
         return f"element {e}, quadrature point {q} at (x, y) = ({x:.4g}, {y:.4g})"
 
     def update(self, stress_n, state_n, dstrain, dspin) -> tiers.UpdateResult:
+        with self.cells.ledger.timed("update"):
+            return self._update(stress_n, state_n, dstrain, dspin)
+
+    def _update(self, stress_n, state_n, dstrain, dspin) -> tiers.UpdateResult:
         stress_n = np.ascontiguousarray(stress_n, dtype=float)
         state_n = np.ascontiguousarray(state_n, dtype=float)
         dstrain = np.ascontiguousarray(dstrain, dtype=float)
@@ -176,16 +181,30 @@ class FexdemSolver(Solver):
                              f"{options.line_search} and {options.spin_step}")
         stress0, state0 = material.initial()
         super().__init__(disc, material, stress0, state0, options)
+        cells = material.cells
+        cells.ledger = Ledger(cells.n, len(cells.blocks))   # the stages' costs only
         self.ckdir = None if ckdir is None else Path(ckdir)
 
     def run_stage(self, stage, start=None):
-        """The solver's stage; a failure below the minimum step names the failed cells."""
+        """The solver's stage; a failure below the minimum step names the failed cells.
+        Its wall time (without the caller's work between steps) and the checkpoints'
+        go into the cells' ledger (:mod:`contfab.fexdem.profile`)."""
+        ledger = self.material.cells.ledger
+        ledger.mark_load()
+        steps = super().run_stage(stage, start)
         try:
-            for record in super().run_stage(stage, start):
-                self.material.commit(self.committed, len(self.records))
-                if self.ckdir is not None:
-                    self._checkpoint(record)
+            while True:
+                with ledger.timed("stage"):
+                    record = next(steps, None)
+                    if record is not None:
+                        self.material.commit(self.committed, len(self.records))
+                        if self.ckdir is not None:
+                            with ledger.timed("checkpoint"):
+                                self._checkpoint(record)
+                if record is None:
+                    break
                 yield record
+            ledger.mark_load()
         except ConvergenceError as exc:
             cells = self.material.failures
             if not cells:

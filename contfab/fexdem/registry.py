@@ -21,6 +21,7 @@ message instead of a stress; the caller turns it into a failed point.
 """
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import numpy as np
@@ -64,34 +65,46 @@ class CellRegistry:
         Returns arrays over ``ids``: ``stress`` (k, 3) in P0, ``state`` (k, 4) (c, A, Bc,
         Bs), ``steps`` (k, 2) (strain, relaxation steps), ``ok`` (k,) bool, ``errors``
         {position in ids: message}, and ``tangent`` (k, 3, 3) in P0 (zeros unless
-        ``probe`` > 0, the relative probe of the cells' tangent; module doc).
+        ``probe`` > 0, the relative probe of the cells' tangent; module doc); ``cpu`` (k,)
+        the CPU time of each cell's runs (this thread's, in s) and ``wall`` the call's
+        wall time here (:mod:`contfab.fexdem.profile`).
         """
         k = len(ids)
         out = {"stress": np.zeros((k, 3)), "state": np.zeros((k, len(CELL_STATE))),
                "steps": np.zeros((k, 2), np.int64), "ok": np.ones(k, bool), "errors": {},
-               "tangent": np.zeros((k, 3, 3))}
+               "tangent": np.zeros((k, 3, 3)), "cpu": np.zeros(k)}
+        wall0 = time.perf_counter()
         for j, i in enumerate(ids):
-            st = self.committed[int(i)].copy()
-            try:
-                res = advance_cell(st, self.dyn, dstrain[j], float(dspin[j]), self.options)
-            except (CellNotRelaxed, IncrementTooLarge, DivergenceError) as exc:
-                out["ok"][j] = False
-                out["errors"][j] = str(exc)
-                self.trials.pop(int(i), None)
-                continue
-            self.trials[int(i)] = st
-            out["stress"][j], out["state"][j] = res.stress, res.state
-            out["steps"][j] = (res.strain_steps, res.relax_steps)
-            if probe > 0:
-                try:
-                    out["tangent"][j] = cell_tangent(self.committed[int(i)], self.dyn, dstrain[j],
-                                                     float(dspin[j]), res.stress, self.options, probe)
-                except (CellNotRelaxed, IncrementTooLarge, DivergenceError):
-                    out["tangent"][j] = np.nan
+            cpu0 = time.thread_time()
+            self._trial_cell(j, int(i), dstrain[j], float(dspin[j]), probe, out)
+            out["cpu"][j] = time.thread_time() - cpu0
+        out["wall"] = time.perf_counter() - wall0
         return out
 
-    def commit(self, fe_step: int) -> None:
-        """Promote every cell's latest trial and checkpoint it as step ``fe_step``."""
+    def _trial_cell(self, j: int, i: int, dstrain, dspin: float, probe: float, out: dict) -> None:
+        """Cell ``i``'s trial into row ``j`` of ``out`` (see :meth:`trial`)."""
+        st = self.committed[i].copy()
+        try:
+            res = advance_cell(st, self.dyn, dstrain, dspin, self.options)
+        except (CellNotRelaxed, IncrementTooLarge, DivergenceError) as exc:
+            out["ok"][j] = False
+            out["errors"][j] = str(exc)
+            self.trials.pop(i, None)
+            return
+        self.trials[i] = st
+        out["stress"][j], out["state"][j] = res.stress, res.state
+        out["steps"][j] = (res.strain_steps, res.relax_steps)
+        if probe > 0:
+            try:
+                out["tangent"][j] = cell_tangent(self.committed[i], self.dyn, dstrain, dspin,
+                                                 res.stress, self.options, probe)
+            except (CellNotRelaxed, IncrementTooLarge, DivergenceError):
+                out["tangent"][j] = np.nan
+
+    def commit(self, fe_step: int) -> dict:
+        """Promote every cell's latest trial and checkpoint it as step ``fe_step``; returns
+        the call's ``wall`` time and this thread's ``cpu`` time here (s)."""
+        wall0, cpu0 = time.perf_counter(), time.thread_time()
         missing = [i for i in self.ids if i not in self.trials]
         if missing:
             raise RuntimeError(f"commit of step {fe_step} without a trial for cells {missing[:5]}")
@@ -101,6 +114,7 @@ class CellRegistry:
             if self.ckdir is not None:
                 checkpoint.save(cell_file(self.ckdir, i), self.committed[i], self.dyn, None,
                                 {"fe_step": fe_step, "cell": i})
+        return {"wall": time.perf_counter() - wall0, "cpu": time.thread_time() - cpu0}
 
     def ping(self) -> int:
         return len(self.ids)
