@@ -1,11 +1,20 @@
 """FE×DEM (issue 8): DEM cells at the quadrature points of the FEM solver."""
+import contextlib
+import os
+import pathlib
+import signal
+import socket
+import subprocess
+import sys
+import time
+
 import numpy as np
 import pytest
 
 from contfab.fem.solver import ConvergenceError, NewtonOptions
 from contfab.fexdem.backends import ProcessCells, SerialCells
 from contfab.fexdem.cell import CellOptions, increment_gradient, increment_stage
-from contfab.fexdem.material import DemMaterial, FexdemSolver
+from contfab.fexdem.material import DemMaterial, FexdemSolver, checkpointed_step
 from contfab.fexdem.scenes import build
 from contfab.params import default_params
 from dem import checkpoint
@@ -98,7 +107,7 @@ def test_process_pool_reproduces_serial_and_recovers_a_killed_process(sample, tm
     recovered = homogeneous_run(sample, killing)
     assert pools[0].recoveries == 1
     np.testing.assert_array_equal(recovered, serial)
-    assert len(list(tmp_path.glob("cell_*.npz"))) == 4
+    assert len(list(tmp_path.glob("cell_*_0.npz"))) == len(list(tmp_path.glob("cell_*_1.npz"))) == 4
 
 
 def test_unrelaxed_cell_is_named_and_the_step_cut(sample):
@@ -235,7 +244,7 @@ def test_interrupted_run_resumes_from_the_field_and_cell_checkpoints(sample, tmp
         for rec in first.run_stage(scene.stage):
             if len(first.records) == 2:
                 break                                   # the run is interrupted here
-    with SerialCells(sample, n, NO_RELAX, ckdir=tmp_path, resume=True) as cells:
+    with SerialCells(sample, n, NO_RELAX, ckdir=tmp_path, resume=checkpointed_step(tmp_path)) as cells:
         mat = DemMaterial(cells, scene.disc, default_params(), tangent="elastic")
         with pytest.raises(ValueError, match="is of stage 'biaxial', not 'other'"):
             FexdemSolver.resume(scene.disc, mat, NEWTON, tmp_path,
@@ -250,27 +259,142 @@ def test_interrupted_run_resumes_from_the_field_and_cell_checkpoints(sample, tmp
     np.testing.assert_array_equal(solver.committed.u, ref.committed.u)
 
 
-def test_a_killed_scene_run_resumes_with_the_uninterrupted_curve(sample, tmp_path, monkeypatch):
-    """`contfab fexdem ... --resume` (compare.run(resume=True)): a run killed after the
-    checkpoint of step 2 of 4, before that step's curve row, resumes from OUT/cells and
-    writes the uninterrupted run's FE×DEM curve CSV byte for byte."""
+@pytest.mark.parametrize("field_written", [True, False])
+def test_a_killed_scene_run_resumes_with_the_uninterrupted_curve(sample, tmp_path, monkeypatch,
+                                                                 field_written):
+    """`contfab fexdem ... --resume` (compare.run(resume=True)): a run killed at step 2 of
+    4, after the cells' checkpoint and after (or before) the FE field's, before that
+    step's curve row, resumes from OUT/cells at step 2 (or 1: the cells' previous
+    generation) and writes the uninterrupted run's FE×DEM curve CSV byte for byte."""
     from contfab.fexdem import compare
 
     kw = dict(steps=4, strain=8e-4, nx=1, ny=1, progress=False)
     compare.run("biaxial", str(sample), tmp_path / "ref", default_params(), **kw)
     checkpoint_step = FexdemSolver._checkpoint
 
-    def killed_after_step_2(self, record):
-        checkpoint_step(self, record)
+    def killed_at_step_2(self, record):
+        if field_written or len(self.records) < 2:
+            checkpoint_step(self, record)
         if len(self.records) == 2:
             raise KeyboardInterrupt
 
-    monkeypatch.setattr(FexdemSolver, "_checkpoint", killed_after_step_2)
+    monkeypatch.setattr(FexdemSolver, "_checkpoint", killed_at_step_2)
     with pytest.raises(KeyboardInterrupt):
         compare.run("biaxial", str(sample), tmp_path / "cut", default_params(), **kw)
     monkeypatch.undo()
     curve = "biaxial_dem_curve.csv"
     assert len((tmp_path / "cut" / curve).read_text().splitlines()) == 1 + 1  # header, step 1
     report = compare.run("biaxial", str(sample), tmp_path / "cut", default_params(), resume=True, **kw)
-    assert report["resumed_from_t"] == 0.5 and report["runs"]["dem"]["steps"] == 4
+    assert report["resumed_from_t"] == (0.5 if field_written else 0.25)
+    assert report["runs"]["dem"]["steps"] == 4
     assert (tmp_path / "cut" / curve).read_text() == (tmp_path / "ref" / curve).read_text()
+
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+ENV = dict(os.environ, NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1",
+           PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+
+
+@pytest.mark.slow
+def test_a_killed_cli_process_resumes_with_the_uninterrupted_curve(sample, tmp_path):
+    """`contfab fexdem` killed (SIGKILL) once the FE×DEM run has checkpointed step 2 of
+    12, then run again with --resume: its FE×DEM curve CSV is the uninterrupted run's
+    byte for byte."""
+    args = [sys.executable, "-m", "contfab.cli", "fexdem", "biaxial", "--sample", str(sample),
+            "--nx", "1", "--ny", "1", "--steps", "12", "--strain", "2.4e-3"]
+    subprocess.run(args + ["--out", str(tmp_path / "ref")], env=ENV, cwd=ROOT, check=True,
+                   capture_output=True, timeout=600)
+    cut = tmp_path / "cut"
+    run = subprocess.Popen(args + ["--out", str(cut)], env=ENV, cwd=ROOT,
+                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 600
+        while time.monotonic() < deadline and run.poll() is None:
+            if (cut / "cells" / "fe_state.npz").exists() and checkpointed_step(cut / "cells") >= 2:
+                break
+            time.sleep(0.005)
+    finally:
+        run.kill()
+        run.wait()
+    assert run.returncode == -signal.SIGKILL, "the run ended before it could be killed"
+    assert 2 <= checkpointed_step(cut / "cells") < 12
+    subprocess.run(args + ["--out", str(cut), "--resume"], env=ENV, cwd=ROOT, check=True,
+                   capture_output=True, timeout=600)
+    curve = "biaxial_dem_curve.csv"
+    assert (cut / curve).read_text() == (tmp_path / "ref" / curve).read_text()
+
+
+@contextlib.contextmanager
+def external_cluster(workers: int = 2, timeout: float = 120):
+    """`dask scheduler` and ``workers`` `dask worker` processes (no nanny: a killed worker
+    stays dead; one thread each) on 127.0.0.1 running this checkout; all stopped on exit.
+    Yields (client, worker processes)."""
+    from distributed import Client
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    address = f"tcp://127.0.0.1:{port}"
+    dask = [sys.executable, "-m", "dask"]
+    quiet = dict(env=ENV, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    procs = [subprocess.Popen(dask + ["scheduler", "--host", "127.0.0.1", "--port", str(port),
+                                      "--no-dashboard"], **quiet)]
+    try:
+        procs += [subprocess.Popen(dask + ["worker", address, "--nthreads", "1", "--no-nanny",
+                                           "--no-dashboard", "--name", f"cells-{k}",
+                                           "--death-timeout", str(timeout)], **quiet)
+                  for k in range(workers)]
+        with Client(address, timeout=timeout) as client:
+            client.wait_for_workers(workers, timeout=timeout)
+            yield client, procs[1:]
+    finally:
+        for p in procs:
+            p.terminate()
+        for p in procs:
+            try:
+                p.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+
+
+@pytest.mark.slow
+def test_external_dask_scheduler_gives_the_serial_numbers(sample):
+    """Cells on a cluster of `dask scheduler` + 2 `dask worker` processes (started here,
+    not a LocalCluster) give the in-process cells' stresses bitwise."""
+    from contfab.fexdem.backends import DaskCells
+    serial = homogeneous_run(sample, lambda n: SerialCells(sample, n, NO_RELAX))
+    with external_cluster() as (client, _):
+        remote = homogeneous_run(sample, lambda n: DaskCells(sample, n, NO_RELAX, client))
+    np.testing.assert_array_equal(remote, serial)
+
+
+@pytest.mark.slow
+def test_external_dask_worker_killed_mid_step_is_recovered(sample, tmp_path):
+    """A `dask worker` process killed (SIGKILL, no nanny to restart it) while its cells run
+    the first trial of step 2: the block is made anew on the surviving worker from the
+    cells' checkpoints of step 1, and the run ends with the serial stresses bitwise."""
+    from contfab.fexdem.backends import DaskCells
+    serial = homogeneous_run(sample, lambda n: SerialCells(sample, n, NO_RELAX), steps=3)
+    with external_cluster() as (client, workers):
+        pids = client.run(os.getpid)
+
+        class KillDuringStepTwo(DaskCells):
+            killed = None
+
+            def _submit(self, b, method, args):
+                handle = super()._submit(b, method, args)
+                if method == "trial" and b == 0 and self.step == 1 and self.killed is None:
+                    holder = next(iter(client.who_has(self.residents[0].future).values()))[0]
+                    self.killed = next(p for p in workers if p.pid == pids[holder])
+                    self.killed.kill()
+                return handle
+        made = []
+
+        def killing(n):
+            made.append(KillDuringStepTwo(sample, n, NO_RELAX, client, ckdir=tmp_path))
+            return made[-1]
+        recovered = homogeneous_run(sample, killing, steps=3)
+        assert made[0].killed.wait(timeout=30) == -signal.SIGKILL
+        assert len(client.scheduler_info()["workers"]) == 1
+    assert made[0].recoveries >= 1
+    np.testing.assert_array_equal(recovered, serial)

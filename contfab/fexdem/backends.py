@@ -13,7 +13,8 @@ the caller's client).
 
 A block whose worker dies (:class:`contfab.executor.WorkerLost`: process killed, dask
 worker lost) is recovered: a new registry is made for it (dask: on any live worker)
-from the cells' checkpoints of the last converged step (``ckdir``), and the
+from the cells' checkpoints of the last converged step (``ckdir``; ``resume=k`` starts
+all blocks from step k's), and the
 interrupted call is repeated. A trial is a pure function of the committed state and
 the increment, so the numbers are the same as without the failure. Without ``ckdir``
 there is nothing to recover from and the loss is an error.
@@ -44,7 +45,7 @@ class Cells:
     """Blocks of cells as resident registries of ``executor``: dispatch, merge, recovery."""
 
     def __init__(self, prepared: str, n: int, options: CellOptions, executor: Executor,
-                 blocks: int, ckdir: str | None = None, resume: bool = False,
+                 blocks: int, ckdir: str | None = None, resume: int = 0,
                  progress: bool = False, layout: str = "interleaved"):
         if n < 1:
             raise ValueError(f"number of cells n = {n} out of range; accepted n >= 1")
@@ -55,17 +56,18 @@ class Cells:
         self.blocks = blocks_of(n, blocks, layout)
         self.ledger = Ledger(n, len(self.blocks))
         self.recoveries = 0
+        self.step = int(resume)
         self.residents = [None] * len(self.blocks)
         for b in range(len(self.blocks)):
-            self._start(b, resume)
+            self._start(b)
 
-    def _start(self, b: int, resume: bool) -> None:
-        """Make block ``b``'s registry (from the checkpoints when ``resume``)."""
+    def _start(self, b: int) -> None:
+        """Make block ``b``'s registry from the last committed step's checkpoints."""
         old = self.residents[b]
         if old is not None:
             old.close()
         self.residents[b] = self.executor.resident(
-            CellRegistry, (self.prepared, self.blocks[b], self.options, self.ckdir, resume), b)
+            CellRegistry, (self.prepared, self.blocks[b], self.options, self.ckdir, self.step), b)
 
     def _submit(self, b: int, method: str, args: tuple):
         """Send a call to block ``b``; returns a handle whose ``result()`` is its value."""
@@ -96,7 +98,7 @@ class Cells:
                     if self.ckdir is None or method == "commit" or attempt == MAX_RECOVERIES:
                         ids = self.blocks[b]
                         raise WorkerLost(f"cells {ids[0]}..{ids[-1]}: {exc}") from exc
-                    self._start(b, resume=True)
+                    self._start(b)
                     self.recoveries += 1
                     handles[b] = self._submit(b, method, args_of(b))
             if bar is not None:
@@ -122,6 +124,7 @@ class Cells:
     def commit(self, fe_step: int) -> None:
         """Promote the latest trials of every cell (a converged FE step) and checkpoint them."""
         self._call("commit", lambda b: (fe_step,))
+        self.step = fe_step
 
     def round_trip(self, rounds: int = 20) -> float:
         """Mean wall time (s) of a no-op call to every block: the per-call overhead."""
@@ -156,14 +159,14 @@ class Cells:
 class SerialCells(Cells):
     """All cells in this process (the reference the other backends must reproduce)."""
 
-    def __init__(self, prepared, n, options, ckdir=None, resume=False, progress=False):
+    def __init__(self, prepared, n, options, ckdir=None, resume=0, progress=False):
         super().__init__(prepared, n, options, SerialExecutor(), 1, ckdir, resume, progress)
 
 
 class ProcessCells(Cells):
     """``workers`` spawned processes, one registry (block) each."""
 
-    def __init__(self, prepared, n, options, workers=2, ckdir=None, resume=False, progress=False,
+    def __init__(self, prepared, n, options, workers=2, ckdir=None, resume=0, progress=False,
                  layout="interleaved"):
         super().__init__(prepared, n, options, PoolExecutor(workers), workers, ckdir, resume,
                          progress, layout)
@@ -172,7 +175,7 @@ class ProcessCells(Cells):
 class DaskCells(Cells):
     """One registry actor per block on a dask.distributed cluster (``client``)."""
 
-    def __init__(self, prepared, n, options, client, blocks=None, ckdir=None, resume=False,
+    def __init__(self, prepared, n, options, client, blocks=None, ckdir=None, resume=0,
                  progress=False, layout="interleaved"):
         workers = list(client.scheduler_info()["workers"])
         if not workers:

@@ -161,6 +161,19 @@ FE_CHECKPOINT = "fe_state.npz"
 _FIELDS = ("u", "stress", "state", "tangent", "spin_tangent", "status", "residual")
 
 
+def _fe_checkpoint(path: Path) -> dict:
+    if not path.exists():
+        raise FileNotFoundError(f"no FE×DEM checkpoint {path}")
+    with np.load(path) as z:
+        return {k: z[k] for k in z.files}
+
+
+def checkpointed_step(ckdir) -> int:
+    """The converged step of the FE field checkpoint in ``ckdir`` (the cells' step to
+    resume from: :mod:`contfab.fexdem.registry` keeps it while the next is written)."""
+    return int(_fe_checkpoint(Path(ckdir) / FE_CHECKPOINT)["fe_step"])
+
+
 class FexdemSolver(Solver):
     """The FEM solver with DEM cells: commits the cells after every converged step.
 
@@ -168,7 +181,7 @@ class FexdemSolver(Solver):
     arrays, the stage's t, its next step dt and start displacements, the step records)
     is written to ``ckdir/fe_state.npz`` (atomic) after the cells' commit of every
     converged step; :meth:`resume` rebuilds the solver from it, on cells made with
-    ``resume=True`` from the same ``ckdir``, and :meth:`run_stage` with the returned
+    ``resume=`` :func:`checkpointed_step` from the same ``ckdir``, and :meth:`run_stage` with the returned
     ``start`` finishes the stage: the same numbers as without the interruption (a trial
     is a function of the committed state and the increment only).
     """
@@ -229,14 +242,11 @@ class FexdemSolver(Solver):
     def resume(cls, disc, material: DemMaterial, options: NewtonOptions, ckdir, stage):
         """(solver, start) from ``ckdir``'s FE checkpoint for ``stage`` (class doc).
 
-        ``material``'s cells must have been made with ``resume=True`` from ``ckdir``;
-        cells whose checkpoint is of another step than the FE field's are an error.
+        ``material``'s cells must have been made with ``resume=checkpointed_step(ckdir)``
+        from ``ckdir``; cells of another step than the FE field's are an error.
         """
         path = Path(ckdir) / FE_CHECKPOINT
-        if not path.exists():
-            raise FileNotFoundError(f"no FE×DEM checkpoint {path}")
-        with np.load(path) as z:
-            data = {k: z[k] for k in z.files}
+        data = _fe_checkpoint(path)
         step, name = int(data["fe_step"]), str(data["stage"])
         if name != stage.name:
             raise ValueError(f"checkpoint {path} is of stage {name!r}, not {stage.name!r}")
@@ -244,8 +254,8 @@ class FexdemSolver(Solver):
         if np.any(cells != step):
             bad = np.flatnonzero(cells != step)
             raise ValueError(f"checkpoint {path} is of step {step} but cells {bad[:5].tolist()} "
-                             f"are at steps {cells[bad[:5]].tolist()} (interrupted between the "
-                             f"cells' and the field's checkpoint)")
+                             f"are at steps {cells[bad[:5]].tolist()} (made with resume = "
+                             f"checkpointed_step({ckdir})?)")
         solver = cls(disc, material, options, ckdir)
         solver.committed = FieldState(name, float(data["t"]),
                                       **{k: np.array(data[k]) for k in _FIELDS})

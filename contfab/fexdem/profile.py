@@ -165,8 +165,10 @@ def predict(ledger: Ledger, workers: int, overhead: tuple[float, float] = (0.0, 
     return ledger.serial_part() + cells + commits
 
 
-CALL_OVERHEAD = (0.0, 0.0)
-"""(o_0, o_1) of the cost model's per-call overhead (s), measured (docs/fexdem.md)."""
+CALL_OVERHEAD = (0.0, 1.4e-3)
+"""(o_0, o_1) of the cost model's per-call overhead (s): a no-op call to B dask actor
+blocks on 2 local workers took 2.2, 14, 48, 86 ms for B = 2, 8, 32, 64 (load 10;
+docs/fexdem.md): the client dispatches and collects the blocks one after the other."""
 PREDICT_WORKERS = (1, 2, 64, 256)
 
 
