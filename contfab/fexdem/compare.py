@@ -10,7 +10,9 @@ Written into ``--out`` (atomically):
     cells/             the cells' and the FE field's checkpoints of the last converged step
                        (FexdemSolver.resume); the FE×DEM curve CSV is rewritten every step
     overlay.png        the load-displacement curves of the three runs
-    report.json        settings, N per cell, cells, wall times, Newton figures, errors, costs
+    report.json        settings, N per cell, cells, wall times, Newton figures, errors, costs,
+                       "profile": where the FE×DEM time went and the cost model's T(W)
+    profile.npz        the per-call, per-cell timings behind it (contfab.fexdem.profile.load)
 
 Errors of a tier against FE×DEM: the curve error max|y_tier - y_dem| / max|y_dem| with
 the tier's curve interpolated at the FE×DEM abscissae, and at the end of the stage the
@@ -40,7 +42,8 @@ from contfab.fem.material import TierMaterial
 from contfab.fem.solver import NewtonOptions, Solver
 from contfab.fexdem.backends import DaskCells, ProcessCells, SerialCells
 from contfab.fexdem.cell import CellOptions
-from contfab.fexdem.material import STATE_NAMES, DemMaterial, FexdemSolver, checkpointed_step
+from contfab.fexdem.material import (STATE_NAMES, DemMaterial, FexdemSolver, checkpointed_step,
+                                     elastic_modulus)
 from contfab.fexdem.profile import costs
 from contfab.fexdem.scenes import build
 from contfab.models import tiers
@@ -150,10 +153,11 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
               "element": disc.element, "cells": disc.npoints, "backend": backend, "runs": {}}
     curves, finals = {}, {}
     t0 = time.perf_counter()
+    modulus = elastic_modulus(prepared)   # first: a cold kernel cache is filled once, here
     cells = make_cells(backend, prepared, disc.npoints, options, workers, address, out / "cells",
                        progress, checkpointed_step(out / "cells") if resume else 0, blocks, layout)
     try:
-        mat = DemMaterial(cells, disc, params, p_unit=p0, tangent=TANGENT,
+        mat = DemMaterial(cells, disc, params, p_unit=p0, tangent=TANGENT, modulus=modulus,
                           tangent_tier=params.tier if params.tier in (1, 2) else 2)
         stress0, state0 = mat.initial()
         outputs = analysis.Outputs(out, f"{case}_dem", curve_axes=(xcol, ycol),

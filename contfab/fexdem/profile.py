@@ -25,8 +25,9 @@ on W workers:
     T(W) = T_main + Σ_trials [ max_b Σ_{i ∈ b} t_i + o(W) ] + Σ_commits [ t_c ⌈n/W⌉ + o(W) ],
     o(W) = o_0 + o_1 W  (W = 1 in-process: o = 0)
 
-with blocks b of ``layout`` (:func:`blocks_of`), T_main the main process's serial part
-(FE solve, tier tangent, checkpoints) and t_c a cell's commit time. Assumptions: a cell
+with blocks b of ``layout`` (:func:`blocks_of`), t_i the measured CPU time of cell i in
+that trial, T_main the main thread's CPU time outside the cell calls (FE solve, tier
+tangent, checkpoints) and t_c a cell's commit time (worker wall). Assumptions: a cell
 costs on a worker what it cost where it was measured (one core per worker, no memory-
 bandwidth contention), the per-call overhead grows linearly with the number of blocks
 (the main process dispatches and collects them one after the other), the bytes are
