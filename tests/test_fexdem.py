@@ -135,8 +135,6 @@ def test_dask_cluster_reproduces_serial_and_recovers_a_killed_worker(sample, tmp
     """Acceptance 3 (dask): a local cluster of 2 worker processes gives the serial numbers
     bitwise; a worker killed while its cells run a trial is recovered (its actor restarts
     from the cells' checkpoints on a live worker) with the same result."""
-    import os
-    import signal
     from distributed import Client, LocalCluster
     from contfab.fexdem.backends import DaskCells
 
@@ -146,26 +144,34 @@ def test_dask_cluster_reproduces_serial_and_recovers_a_killed_worker(sample, tmp
         plain = homogeneous_run(sample, lambda n: DaskCells(sample, n, NO_RELAX, client), steps=3)
         np.testing.assert_array_equal(plain, serial)
 
-        class KillDuringStepTwo(DaskCells):
-            trials = 0
-
-            def _submit(self, b, method, args):
-                handle = super()._submit(b, method, args)
-                if method == "trial" and b == 0:
-                    self.trials += 1
-                    if self.trials == 4:          # the first trial of step 2
-                        addr = next(iter(client.who_has(self.residents[0].future).values()))[0]
-                        pid = client.run(os.getpid, workers=[addr])[addr]
-                        os.kill(pid, signal.SIGKILL)
-                return handle
-        pools = []
-
-        def killing(n):
-            pools.append(KillDuringStepTwo(sample, n, NO_RELAX, client, ckdir=tmp_path))
-            return pools[-1]
-        recovered = homogeneous_run(sample, killing, steps=3)
-    assert pools[0].recoveries >= 1
+        def kill(address):
+            os.kill(client.run(os.getpid, workers=[address])[address], signal.SIGKILL)
+        recovered, cells = run_killing_a_worker(sample, client, tmp_path, kill)
+    assert cells.recoveries >= 1
     np.testing.assert_array_equal(recovered, serial)
+
+
+def run_killing_a_worker(sample, client, ckdir, kill):
+    """(stresses, cells) of the 3-step homogeneous run on dask cells whose block 0's
+    worker is killed by ``kill(worker address)`` once the block's first trial of step 2
+    has been sent (the cells checkpoint into ``ckdir``)."""
+    from contfab.fexdem.backends import DaskCells
+
+    class KillDuringStepTwo(DaskCells):
+        killed = False
+
+        def _submit(self, b, method, args):
+            handle = super()._submit(b, method, args)
+            if method == "trial" and b == 0 and self.step == 1 and not self.killed:
+                self.killed = True
+                kill(next(iter(client.who_has(self.residents[0].future).values()))[0])
+            return handle
+    made = []
+
+    def cells_of(n):
+        made.append(KillDuringStepTwo(sample, n, NO_RELAX, client, ckdir=ckdir))
+        return made[-1]
+    return homogeneous_run(sample, cells_of, steps=3), made[0]
 
 
 def test_field_errors_are_relative_l2_norms():
@@ -303,12 +309,12 @@ def test_a_killed_cli_process_resumes_with_the_uninterrupted_curve(sample, tmp_p
     args = [sys.executable, "-m", "contfab.cli", "fexdem", "biaxial", "--sample", str(sample),
             "--nx", "1", "--ny", "1", "--steps", "12", "--strain", "2.4e-3"]
     subprocess.run(args + ["--out", str(tmp_path / "ref")], env=ENV, cwd=ROOT, check=True,
-                   capture_output=True, timeout=600)
+                   capture_output=True, timeout=1800)
     cut = tmp_path / "cut"
     run = subprocess.Popen(args + ["--out", str(cut)], env=ENV, cwd=ROOT,
                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
-        deadline = time.monotonic() + 600
+        deadline = time.monotonic() + 1800
         while time.monotonic() < deadline and run.poll() is None:
             if (cut / "cells" / "fe_state.npz").exists() and checkpointed_step(cut / "cells") >= 2:
                 break
@@ -319,7 +325,7 @@ def test_a_killed_cli_process_resumes_with_the_uninterrupted_curve(sample, tmp_p
     assert run.returncode == -signal.SIGKILL, "the run ended before it could be killed"
     assert 2 <= checkpointed_step(cut / "cells") < 12
     subprocess.run(args + ["--out", str(cut), "--resume"], env=ENV, cwd=ROOT, check=True,
-                   capture_output=True, timeout=600)
+                   capture_output=True, timeout=1800)
     curve = "biaxial_dem_curve.csv"
     assert (cut / curve).read_text() == (tmp_path / "ref" / curve).read_text()
 
@@ -377,24 +383,13 @@ def test_external_dask_worker_killed_mid_step_is_recovered(sample, tmp_path):
     serial = homogeneous_run(sample, lambda n: SerialCells(sample, n, NO_RELAX), steps=3)
     with external_cluster() as (client, workers):
         pids = client.run(os.getpid)
+        killed = []
 
-        class KillDuringStepTwo(DaskCells):
-            killed = None
-
-            def _submit(self, b, method, args):
-                handle = super()._submit(b, method, args)
-                if method == "trial" and b == 0 and self.step == 1 and self.killed is None:
-                    holder = next(iter(client.who_has(self.residents[0].future).values()))[0]
-                    self.killed = next(p for p in workers if p.pid == pids[holder])
-                    self.killed.kill()
-                return handle
-        made = []
-
-        def killing(n):
-            made.append(KillDuringStepTwo(sample, n, NO_RELAX, client, ckdir=tmp_path))
-            return made[-1]
-        recovered = homogeneous_run(sample, killing, steps=3)
-        assert made[0].killed.wait(timeout=30) == -signal.SIGKILL
+        def kill(address):
+            killed.append(next(p for p in workers if p.pid == pids[address]))
+            killed[-1].kill()
+        recovered, cells = run_killing_a_worker(sample, client, tmp_path, kill)
+        assert [p.wait(timeout=30) for p in killed] == [-signal.SIGKILL]
         assert len(client.scheduler_info()["workers"]) == 1
-    assert made[0].recoveries >= 1
+    assert cells.recoveries >= 1
     np.testing.assert_array_equal(recovered, serial)
