@@ -393,3 +393,23 @@ def test_external_dask_worker_killed_mid_step_is_recovered(sample, tmp_path):
         assert len(client.scheduler_info()["workers"]) == 1
     assert cells.recoveries >= 1
     np.testing.assert_array_equal(recovered, serial)
+
+
+def test_cost_model_replays_cell_times_on_w_workers():
+    """profile.predict on a ledger of known cell times: one worker pays the sum of all
+    cells, n workers the slowest cell of each trial plus the per-call overhead o_1 W
+    (closed form); both layouts cover every cell once; the serial part adds as is."""
+    from contfab.fexdem.profile import Ledger, blocks_of, predict
+    for layout in ("interleaved", "contiguous"):
+        for b in (1, 3, 7, 12):
+            ids = np.sort(np.concatenate(blocks_of(7, b, layout)))
+            np.testing.assert_array_equal(ids, np.arange(7))
+    cpu = [np.array([1.0, 2.0, 3.0, 4.0]), np.array([0.5, 0.5, 0.5, 2.5])]
+    ledger = Ledger(4, 1, trial_cell_cpu=cpu, commit_block_wall=[[0.4]], commit_wall=[0.4])
+    ledger.main_cpu.update(stage=1.0)                 # all of it FE: T_main = 1
+    assert predict(ledger, 1) == pytest.approx(1.0 + 10.0 + 4.0 + 0.4)
+    assert predict(ledger, 4, (0.0, 0.01)) == pytest.approx(
+        1.0 + (4.0 + 0.04) + (2.5 + 0.04) + (0.1 + 0.04))
+    # interleaved pairs on 2 workers: {0, 2}, {1, 3}
+    assert predict(ledger, 2) == pytest.approx(1.0 + 6.0 + 3.0 + 0.2)
+    assert predict(ledger, 2, layout="contiguous") == pytest.approx(1.0 + 7.0 + 3.0 + 0.2)
