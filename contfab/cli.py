@@ -318,6 +318,11 @@ def _add_fexdem(p: argparse.ArgumentParser) -> None:
     p.add_argument("--backend", choices=("serial", "process", "dask"), default="serial")
     p.add_argument("--workers", type=int, default=2, help="pool processes or local dask workers")
     p.add_argument("--address", default=None, help="dask scheduler address (default: local cluster)")
+    p.add_argument("--blocks", type=int, default=None,
+                   help="dask: cell blocks (actors), default one per worker")
+    p.add_argument("--layout", choices=("interleaved", "contiguous"), default="interleaved",
+                   help="cells to blocks: interleaved (cell i in block i mod B, default) or "
+                        "contiguous ranges")
     p.add_argument("--steps", type=int, default=None, help="load steps (default: the case's)")
     p.add_argument("--strain", type=float, default=None, help="axial strain or shear strain")
     p.add_argument("--relax", type=float, default=None, metavar="FORCE_TOL",
@@ -351,7 +356,7 @@ def _run_fexdem(args) -> None:
     options = CELL_OPTIONS if args.relax is None else CellOptions(force_tol=args.relax)
     report = run(args.case, str(sample), args.out, params, p0=args.p0, backend=args.backend,
                  workers=args.workers, address=args.address, options=options,
-                 resume=args.resume, **extra)
+                 resume=args.resume, blocks=args.blocks, layout=args.layout, **extra)
     print(f"{args.case}: {report['cells']} DEM cells of {report['discs_per_cell']} discs, "
           f"{report['elements']} {report['element']} elements"
           + (f", FE×DEM resumed at t = {report['resumed_from_t']:.4g}" if args.resume else ""))

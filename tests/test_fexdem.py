@@ -1,11 +1,20 @@
 """FE×DEM (issue 8): DEM cells at the quadrature points of the FEM solver."""
+import contextlib
+import os
+import pathlib
+import signal
+import socket
+import subprocess
+import sys
+import time
+
 import numpy as np
 import pytest
 
 from contfab.fem.solver import ConvergenceError, NewtonOptions
 from contfab.fexdem.backends import ProcessCells, SerialCells
 from contfab.fexdem.cell import CellOptions, increment_gradient, increment_stage
-from contfab.fexdem.material import DemMaterial, FexdemSolver
+from contfab.fexdem.material import DemMaterial, FexdemSolver, checkpointed_step
 from contfab.fexdem.scenes import build
 from contfab.params import default_params
 from dem import checkpoint
@@ -98,7 +107,7 @@ def test_process_pool_reproduces_serial_and_recovers_a_killed_process(sample, tm
     recovered = homogeneous_run(sample, killing)
     assert pools[0].recoveries == 1
     np.testing.assert_array_equal(recovered, serial)
-    assert len(list(tmp_path.glob("cell_*.npz"))) == 4
+    assert len(list(tmp_path.glob("cell_*_0.npz"))) == len(list(tmp_path.glob("cell_*_1.npz"))) == 4
 
 
 def test_unrelaxed_cell_is_named_and_the_step_cut(sample):
@@ -126,8 +135,6 @@ def test_dask_cluster_reproduces_serial_and_recovers_a_killed_worker(sample, tmp
     """Acceptance 3 (dask): a local cluster of 2 worker processes gives the serial numbers
     bitwise; a worker killed while its cells run a trial is recovered (its actor restarts
     from the cells' checkpoints on a live worker) with the same result."""
-    import os
-    import signal
     from distributed import Client, LocalCluster
     from contfab.fexdem.backends import DaskCells
 
@@ -137,26 +144,34 @@ def test_dask_cluster_reproduces_serial_and_recovers_a_killed_worker(sample, tmp
         plain = homogeneous_run(sample, lambda n: DaskCells(sample, n, NO_RELAX, client), steps=3)
         np.testing.assert_array_equal(plain, serial)
 
-        class KillDuringStepTwo(DaskCells):
-            trials = 0
-
-            def _submit(self, b, method, args):
-                handle = super()._submit(b, method, args)
-                if method == "trial" and b == 0:
-                    self.trials += 1
-                    if self.trials == 4:          # the first trial of step 2
-                        addr = next(iter(client.who_has(self.residents[0].future).values()))[0]
-                        pid = client.run(os.getpid, workers=[addr])[addr]
-                        os.kill(pid, signal.SIGKILL)
-                return handle
-        pools = []
-
-        def killing(n):
-            pools.append(KillDuringStepTwo(sample, n, NO_RELAX, client, ckdir=tmp_path))
-            return pools[-1]
-        recovered = homogeneous_run(sample, killing, steps=3)
-    assert pools[0].recoveries >= 1
+        def kill(address):
+            os.kill(client.run(os.getpid, workers=[address])[address], signal.SIGKILL)
+        recovered, cells = run_killing_a_worker(sample, client, tmp_path, kill)
+    assert cells.recoveries >= 1
     np.testing.assert_array_equal(recovered, serial)
+
+
+def run_killing_a_worker(sample, client, ckdir, kill):
+    """(stresses, cells) of the 3-step homogeneous run on dask cells whose block 0's
+    worker is killed by ``kill(worker address)`` once the block's first trial of step 2
+    has been sent (the cells checkpoint into ``ckdir``)."""
+    from contfab.fexdem.backends import DaskCells
+
+    class KillDuringStepTwo(DaskCells):
+        killed = False
+
+        def _submit(self, b, method, args):
+            handle = super()._submit(b, method, args)
+            if method == "trial" and b == 0 and self.step == 1 and not self.killed:
+                self.killed = True
+                kill(next(iter(client.who_has(self.residents[0].future).values()))[0])
+            return handle
+    made = []
+
+    def cells_of(n):
+        made.append(KillDuringStepTwo(sample, n, NO_RELAX, client, ckdir=ckdir))
+        return made[-1]
+    return homogeneous_run(sample, cells_of, steps=3), made[0]
 
 
 def test_field_errors_are_relative_l2_norms():
@@ -235,7 +250,7 @@ def test_interrupted_run_resumes_from_the_field_and_cell_checkpoints(sample, tmp
         for rec in first.run_stage(scene.stage):
             if len(first.records) == 2:
                 break                                   # the run is interrupted here
-    with SerialCells(sample, n, NO_RELAX, ckdir=tmp_path, resume=True) as cells:
+    with SerialCells(sample, n, NO_RELAX, ckdir=tmp_path, resume=checkpointed_step(tmp_path)) as cells:
         mat = DemMaterial(cells, scene.disc, default_params(), tangent="elastic")
         with pytest.raises(ValueError, match="is of stage 'biaxial', not 'other'"):
             FexdemSolver.resume(scene.disc, mat, NEWTON, tmp_path,
@@ -250,27 +265,151 @@ def test_interrupted_run_resumes_from_the_field_and_cell_checkpoints(sample, tmp
     np.testing.assert_array_equal(solver.committed.u, ref.committed.u)
 
 
-def test_a_killed_scene_run_resumes_with_the_uninterrupted_curve(sample, tmp_path, monkeypatch):
-    """`contfab fexdem ... --resume` (compare.run(resume=True)): a run killed after the
-    checkpoint of step 2 of 4, before that step's curve row, resumes from OUT/cells and
-    writes the uninterrupted run's FE×DEM curve CSV byte for byte."""
+@pytest.mark.parametrize("field_written", [True, False])
+def test_a_killed_scene_run_resumes_with_the_uninterrupted_curve(sample, tmp_path, monkeypatch,
+                                                                 field_written):
+    """`contfab fexdem ... --resume` (compare.run(resume=True)): a run killed at step 2 of
+    4, after the cells' checkpoint and after (or before) the FE field's, before that
+    step's curve row, resumes from OUT/cells at step 2 (or 1: the cells' previous
+    generation) and writes the uninterrupted run's FE×DEM curve CSV byte for byte."""
     from contfab.fexdem import compare
 
     kw = dict(steps=4, strain=8e-4, nx=1, ny=1, progress=False)
     compare.run("biaxial", str(sample), tmp_path / "ref", default_params(), **kw)
     checkpoint_step = FexdemSolver._checkpoint
 
-    def killed_after_step_2(self, record):
-        checkpoint_step(self, record)
+    def killed_at_step_2(self, record):
+        if field_written or len(self.records) < 2:
+            checkpoint_step(self, record)
         if len(self.records) == 2:
             raise KeyboardInterrupt
 
-    monkeypatch.setattr(FexdemSolver, "_checkpoint", killed_after_step_2)
+    monkeypatch.setattr(FexdemSolver, "_checkpoint", killed_at_step_2)
     with pytest.raises(KeyboardInterrupt):
         compare.run("biaxial", str(sample), tmp_path / "cut", default_params(), **kw)
     monkeypatch.undo()
     curve = "biaxial_dem_curve.csv"
     assert len((tmp_path / "cut" / curve).read_text().splitlines()) == 1 + 1  # header, step 1
     report = compare.run("biaxial", str(sample), tmp_path / "cut", default_params(), resume=True, **kw)
-    assert report["resumed_from_t"] == 0.5 and report["runs"]["dem"]["steps"] == 4
+    assert report["resumed_from_t"] == (0.5 if field_written else 0.25)
+    assert report["runs"]["dem"]["steps"] == 4
     assert (tmp_path / "cut" / curve).read_text() == (tmp_path / "ref" / curve).read_text()
+
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+ENV = dict(os.environ, NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1",
+           PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+
+
+@pytest.mark.slow
+def test_a_killed_cli_process_resumes_with_the_uninterrupted_curve(sample, tmp_path):
+    """`contfab fexdem` killed (SIGKILL) once the FE×DEM run has checkpointed step 2 of
+    12, then run again with --resume: its FE×DEM curve CSV is the uninterrupted run's
+    byte for byte."""
+    args = [sys.executable, "-m", "contfab.cli", "fexdem", "biaxial", "--sample", str(sample),
+            "--nx", "1", "--ny", "1", "--steps", "12", "--strain", "2.4e-3"]
+    subprocess.run(args + ["--out", str(tmp_path / "ref")], env=ENV, cwd=ROOT, check=True,
+                   capture_output=True, timeout=1800)
+    cut = tmp_path / "cut"
+    run = subprocess.Popen(args + ["--out", str(cut)], env=ENV, cwd=ROOT,
+                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 1800
+        while time.monotonic() < deadline and run.poll() is None:
+            if (cut / "cells" / "fe_state.npz").exists() and checkpointed_step(cut / "cells") >= 2:
+                break
+            time.sleep(0.005)
+    finally:
+        run.kill()
+        run.wait()
+    assert run.returncode == -signal.SIGKILL, "the run ended before it could be killed"
+    assert 2 <= checkpointed_step(cut / "cells") < 12
+    subprocess.run(args + ["--out", str(cut), "--resume"], env=ENV, cwd=ROOT, check=True,
+                   capture_output=True, timeout=1800)
+    curve = "biaxial_dem_curve.csv"
+    assert (cut / curve).read_text() == (tmp_path / "ref" / curve).read_text()
+
+
+@contextlib.contextmanager
+def external_cluster(workers: int = 2, timeout: float = 120):
+    """`dask scheduler` and ``workers`` `dask worker` processes (no nanny: a killed worker
+    stays dead; one thread each) on 127.0.0.1 running this checkout; all stopped on exit.
+    Yields (client, worker processes)."""
+    from distributed import Client
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    address = f"tcp://127.0.0.1:{port}"
+    dask = [sys.executable, "-m", "dask"]
+    quiet = dict(env=ENV, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    procs = [subprocess.Popen(dask + ["scheduler", "--host", "127.0.0.1", "--port", str(port),
+                                      "--no-dashboard"], **quiet)]
+    try:
+        procs += [subprocess.Popen(dask + ["worker", address, "--nthreads", "1", "--no-nanny",
+                                           "--no-dashboard", "--name", f"cells-{k}",
+                                           "--death-timeout", str(timeout)], **quiet)
+                  for k in range(workers)]
+        with Client(address, timeout=timeout) as client:
+            client.wait_for_workers(workers, timeout=timeout)
+            yield client, procs[1:]
+    finally:
+        for p in procs:
+            p.terminate()
+        for p in procs:
+            try:
+                p.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+
+
+@pytest.mark.slow
+def test_external_dask_scheduler_gives_the_serial_numbers(sample):
+    """Cells on a cluster of `dask scheduler` + 2 `dask worker` processes (started here,
+    not a LocalCluster) give the in-process cells' stresses bitwise."""
+    from contfab.fexdem.backends import DaskCells
+    serial = homogeneous_run(sample, lambda n: SerialCells(sample, n, NO_RELAX))
+    with external_cluster() as (client, _):
+        remote = homogeneous_run(sample, lambda n: DaskCells(sample, n, NO_RELAX, client))
+    np.testing.assert_array_equal(remote, serial)
+
+
+@pytest.mark.slow
+def test_external_dask_worker_killed_mid_step_is_recovered(sample, tmp_path):
+    """A `dask worker` process killed (SIGKILL, no nanny to restart it) while its cells run
+    the first trial of step 2: the block is made anew on the surviving worker from the
+    cells' checkpoints of step 1, and the run ends with the serial stresses bitwise."""
+    from contfab.fexdem.backends import DaskCells
+    serial = homogeneous_run(sample, lambda n: SerialCells(sample, n, NO_RELAX), steps=3)
+    with external_cluster() as (client, workers):
+        pids = client.run(os.getpid)
+        killed = []
+
+        def kill(address):
+            killed.append(next(p for p in workers if p.pid == pids[address]))
+            killed[-1].kill()
+        recovered, cells = run_killing_a_worker(sample, client, tmp_path, kill)
+        assert [p.wait(timeout=30) for p in killed] == [-signal.SIGKILL]
+        assert len(client.scheduler_info()["workers"]) == 1
+    assert cells.recoveries >= 1
+    np.testing.assert_array_equal(recovered, serial)
+
+
+def test_cost_model_replays_cell_times_on_w_workers():
+    """profile.predict on a ledger of known cell times: one worker pays the sum of all
+    cells, n workers the slowest cell of each trial plus the per-call overhead o_1 W
+    (closed form); both layouts cover every cell once; the serial part adds as is."""
+    from contfab.fexdem.profile import Ledger, blocks_of, predict
+    for layout in ("interleaved", "contiguous"):
+        for b in (1, 3, 7, 12):
+            ids = np.sort(np.concatenate(blocks_of(7, b, layout)))
+            np.testing.assert_array_equal(ids, np.arange(7))
+    cpu = [np.array([1.0, 2.0, 3.0, 4.0]), np.array([0.5, 0.5, 0.5, 2.5])]
+    ledger = Ledger(4, 1, trial_cell_cpu=cpu, commit_block_wall=[[0.4]], commit_wall=[0.4])
+    ledger.main_cpu.update(stage=1.0)                 # all of it FE: T_main = 1
+    assert predict(ledger, 1) == pytest.approx(1.0 + 10.0 + 4.0 + 0.4)
+    assert predict(ledger, 4, (0.0, 0.01)) == pytest.approx(
+        1.0 + (4.0 + 0.04) + (2.5 + 0.04) + (0.1 + 0.04))
+    # interleaved pairs on 2 workers: {0, 2}, {1, 3}
+    assert predict(ledger, 2) == pytest.approx(1.0 + 6.0 + 3.0 + 0.2)
+    assert predict(ledger, 2, layout="contiguous") == pytest.approx(1.0 + 7.0 + 3.0 + 0.2)

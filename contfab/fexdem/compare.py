@@ -10,7 +10,9 @@ Written into ``--out`` (atomically):
     cells/             the cells' and the FE field's checkpoints of the last converged step
                        (FexdemSolver.resume); the FE×DEM curve CSV is rewritten every step
     overlay.png        the load-displacement curves of the three runs
-    report.json        settings, N per cell, cells, wall times, Newton figures, errors, costs
+    report.json        settings, N per cell, cells, wall times, Newton figures, errors, costs,
+                       "profile": where the FE×DEM time went and the cost model's T(W)
+    profile.npz        the per-call, per-cell timings behind it (contfab.fexdem.profile.load)
 
 Errors of a tier against FE×DEM: the curve error max|y_tier - y_dem| / max|y_dem| with
 the tier's curve interpolated at the FE×DEM abscissae, and at the end of the stage the
@@ -18,10 +20,12 @@ relative L2 field errors (quadrature-weighted) of the stress, of R/P and of c. T
 cost ratio is the FE×DEM wall time over the tier's (each tier's kernels are loaded or
 compiled by one untimed update first).
 
-``resume=True`` (``contfab fexdem ... --resume``) continues an interrupted FE×DEM run in
-``--out`` from ``cells/`` (same scene and settings): the cells and the field restart from
-their last checkpointed step, the curve keeps the rows recorded before it, and the stage
-ends with the numbers of an uninterrupted run (tests/test_fexdem.py). The report's FE×DEM
+``resume=True`` (``contfab fexdem ... --resume``) continues an interrupted or killed
+FE×DEM run in ``--out`` from ``cells/`` (same scene and settings): the field and the
+cells restart from the field's last checkpointed step (the cells keep two generations
+of checkpoints, so a kill between the cells' and the field's checkpoint of a step
+resumes from the step before), the curve keeps the rows recorded before it, and the
+stage ends with the numbers of an uninterrupted run (tests/test_fexdem.py). The report's FE×DEM
 wall time and cost ratios then count the resumed part only (``resumed_from_t``).
 """
 from __future__ import annotations
@@ -32,12 +36,15 @@ from pathlib import Path
 
 import numpy as np
 
+from contfab.executor import WORKER_ENV
 from contfab.fem import analysis
 from contfab.fem.material import TierMaterial
 from contfab.fem.solver import NewtonOptions, Solver
 from contfab.fexdem.backends import DaskCells, ProcessCells, SerialCells
 from contfab.fexdem.cell import CellOptions
-from contfab.fexdem.material import STATE_NAMES, DemMaterial, FexdemSolver
+from contfab.fexdem.material import (STATE_NAMES, DemMaterial, FexdemSolver, checkpointed_step,
+                                     elastic_modulus)
+from contfab.fexdem.profile import costs
 from contfab.fexdem.scenes import build
 from contfab.models import tiers
 from contfab.params import Params
@@ -73,20 +80,23 @@ CASES = {
 
 
 def make_cells(backend: str, prepared: str, n: int, options: CellOptions, workers: int,
-               address: str | None, ckdir: Path, progress: bool, resume: bool = False):
-    """The cell backend by name: serial, process (``workers``), dask (``address`` or local);
-    ``resume``: the cells restart from their checkpoints in ``ckdir``."""
+               address: str | None, ckdir: Path, progress: bool, resume: int = 0,
+               blocks: int | None = None, layout: str = "interleaved"):
+    """The cell backend by name: serial, process (``workers``), dask (``address`` or local;
+    ``blocks`` actors, default one per worker); ``resume`` = k > 0: the cells restart
+    from their checkpoints of step k in ``ckdir``."""
     if backend == "serial":
         return SerialCells(prepared, n, options, ckdir, resume, progress=progress)
     if backend == "process":
-        return ProcessCells(prepared, n, options, workers, ckdir, resume, progress=progress)
+        return ProcessCells(prepared, n, options, workers, ckdir, resume, progress=progress,
+                            layout=layout)
     if backend == "dask":
         from distributed import Client, LocalCluster
         cluster = None if address else LocalCluster(n_workers=workers, threads_per_worker=1,
-                                                   dashboard_address=None)
+                                                   dashboard_address=None, env=dict(WORKER_ENV))
         client = Client(address or cluster)
-        cells = DaskCells(prepared, n, options, client, ckdir=ckdir, resume=resume,
-                          progress=progress)
+        cells = DaskCells(prepared, n, options, client, blocks, ckdir=ckdir, resume=resume,
+                          progress=progress, layout=layout)
         cells.owned = (client, cluster)
         return cells
     raise ValueError(f"backend {backend!r} unknown; accepted serial, process, dask")
@@ -129,7 +139,7 @@ def field_errors(disc, ref_stress, ref_c, stress, c) -> dict:
 def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1.0,
         backend: str = "serial", workers: int = 2, address: str | None = None,
         options: CellOptions = CELL_OPTIONS, progress: bool = True, resume: bool = False,
-        **overrides) -> dict:
+        blocks: int | None = None, layout: str = "interleaved", **overrides) -> dict:
     """Run ``case`` three ways and write the report (see the module doc); returns it."""
     if case not in CASES:
         raise ValueError(f"case {case!r} unknown; accepted {sorted(CASES)}")
@@ -143,10 +153,11 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
               "element": disc.element, "cells": disc.npoints, "backend": backend, "runs": {}}
     curves, finals = {}, {}
     t0 = time.perf_counter()
+    modulus = elastic_modulus(prepared)   # first: a cold kernel cache is filled once, here
     cells = make_cells(backend, prepared, disc.npoints, options, workers, address, out / "cells",
-                       progress, resume)
+                       progress, checkpointed_step(out / "cells") if resume else 0, blocks, layout)
     try:
-        mat = DemMaterial(cells, disc, params, p_unit=p0, tangent=TANGENT,
+        mat = DemMaterial(cells, disc, params, p_unit=p0, tangent=TANGENT, modulus=modulus,
                           tangent_tier=params.tier if params.tier in (1, 2) else 2)
         stress0, state0 = mat.initial()
         outputs = analysis.Outputs(out, f"{case}_dem", curve_axes=(xcol, ycol),
@@ -158,6 +169,7 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
                                                         scene.measure))
         else:
             solver, again = FexdemSolver(disc, mat, DEM_NEWTON, ckdir=out / "cells"), None
+        startup = time.perf_counter() - t0
         res = analysis.run(solver, [scene.stage], scene.measure, outputs, progress, resume=again)
         from dem.checkpoint import load
         st, dyn, _, _ = load(prepared)
@@ -173,12 +185,16 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
         report["cell_modulus_P0"] = mat.modulus
         report["dem_steps_per_cell"] = {"strain": int(mat.cell_steps[0]), "relax": int(mat.cell_steps[1])}
         report["recoveries"] = cells.recoveries
+        report["profile"] = costs(cells, out / "profile.npz")
     finally:
         cells.close()
         for owned in getattr(cells, "owned", ()):
             if owned is not None:
                 owned.close()
     report["runs"]["dem"] = _summary(res, solver, time.perf_counter() - t0)
+    report["profile"]["startup_s"] = startup    # cells made, kernels loaded (or compiled)
+    report["profile"]["outputs_and_close_s"] = (report["runs"]["dem"]["wall_s"] - startup
+                                                - report["profile"]["stage_s"])
     curves["dem"], finals["dem"] = res, solver.committed
     for tier in (1, 2):
         tmat = TierMaterial(params.replace("regularization", p_ref=p0), tier)

@@ -44,6 +44,7 @@ import numpy as np
 
 from contfab.fem.solver import ConvergenceError, FieldState, NewtonOptions, Solver, StepRecord
 from contfab.fexdem.cell import CellOptions, advance_cell, measure_cell, start_cell
+from contfab.fexdem.profile import Ledger
 from contfab.models import tiers
 from contfab.params import Params
 from contfab.tensors import isotropic_stiffness
@@ -117,6 +118,10 @@ class DemMaterial:
         return f"element {e}, quadrature point {q} at (x, y) = ({x:.4g}, {y:.4g})"
 
     def update(self, stress_n, state_n, dstrain, dspin) -> tiers.UpdateResult:
+        with self.cells.ledger.timed("update"):
+            return self._update(stress_n, state_n, dstrain, dspin)
+
+    def _update(self, stress_n, state_n, dstrain, dspin) -> tiers.UpdateResult:
         stress_n = np.ascontiguousarray(stress_n, dtype=float)
         state_n = np.ascontiguousarray(state_n, dtype=float)
         dstrain = np.ascontiguousarray(dstrain, dtype=float)
@@ -156,6 +161,19 @@ FE_CHECKPOINT = "fe_state.npz"
 _FIELDS = ("u", "stress", "state", "tangent", "spin_tangent", "status", "residual")
 
 
+def _fe_checkpoint(path: Path) -> dict:
+    if not path.exists():
+        raise FileNotFoundError(f"no FE×DEM checkpoint {path}")
+    with np.load(path) as z:
+        return {k: z[k] for k in z.files}
+
+
+def checkpointed_step(ckdir) -> int:
+    """The converged step of the FE field checkpoint in ``ckdir`` (the cells' step to
+    resume from: :mod:`contfab.fexdem.registry` keeps it while the next is written)."""
+    return int(_fe_checkpoint(Path(ckdir) / FE_CHECKPOINT)["fe_step"])
+
+
 class FexdemSolver(Solver):
     """The FEM solver with DEM cells: commits the cells after every converged step.
 
@@ -163,7 +181,7 @@ class FexdemSolver(Solver):
     arrays, the stage's t, its next step dt and start displacements, the step records)
     is written to ``ckdir/fe_state.npz`` (atomic) after the cells' commit of every
     converged step; :meth:`resume` rebuilds the solver from it, on cells made with
-    ``resume=True`` from the same ``ckdir``, and :meth:`run_stage` with the returned
+    ``resume=`` :func:`checkpointed_step` from the same ``ckdir``, and :meth:`run_stage` with the returned
     ``start`` finishes the stage: the same numbers as without the interruption (a trial
     is a function of the committed state and the increment only).
     """
@@ -176,16 +194,30 @@ class FexdemSolver(Solver):
                              f"{options.line_search} and {options.spin_step}")
         stress0, state0 = material.initial()
         super().__init__(disc, material, stress0, state0, options)
+        cells = material.cells
+        cells.ledger = Ledger(cells.n, len(cells.blocks))   # the stages' costs only
         self.ckdir = None if ckdir is None else Path(ckdir)
 
     def run_stage(self, stage, start=None):
-        """The solver's stage; a failure below the minimum step names the failed cells."""
+        """The solver's stage; a failure below the minimum step names the failed cells.
+        Its wall time (without the caller's work between steps) and the checkpoints'
+        go into the cells' ledger (:mod:`contfab.fexdem.profile`)."""
+        ledger = self.material.cells.ledger
+        ledger.mark_load()
+        steps = super().run_stage(stage, start)
         try:
-            for record in super().run_stage(stage, start):
-                self.material.commit(self.committed, len(self.records))
-                if self.ckdir is not None:
-                    self._checkpoint(record)
+            while True:
+                with ledger.timed("stage"):
+                    record = next(steps, None)
+                    if record is not None:
+                        self.material.commit(self.committed, len(self.records))
+                        if self.ckdir is not None:
+                            with ledger.timed("checkpoint"):
+                                self._checkpoint(record)
+                if record is None:
+                    break
                 yield record
+            ledger.mark_load()
         except ConvergenceError as exc:
             cells = self.material.failures
             if not cells:
@@ -210,14 +242,11 @@ class FexdemSolver(Solver):
     def resume(cls, disc, material: DemMaterial, options: NewtonOptions, ckdir, stage):
         """(solver, start) from ``ckdir``'s FE checkpoint for ``stage`` (class doc).
 
-        ``material``'s cells must have been made with ``resume=True`` from ``ckdir``;
-        cells whose checkpoint is of another step than the FE field's are an error.
+        ``material``'s cells must have been made with ``resume=checkpointed_step(ckdir)``
+        from ``ckdir``; cells of another step than the FE field's are an error.
         """
         path = Path(ckdir) / FE_CHECKPOINT
-        if not path.exists():
-            raise FileNotFoundError(f"no FE×DEM checkpoint {path}")
-        with np.load(path) as z:
-            data = {k: z[k] for k in z.files}
+        data = _fe_checkpoint(path)
         step, name = int(data["fe_step"]), str(data["stage"])
         if name != stage.name:
             raise ValueError(f"checkpoint {path} is of stage {name!r}, not {stage.name!r}")
@@ -225,8 +254,8 @@ class FexdemSolver(Solver):
         if np.any(cells != step):
             bad = np.flatnonzero(cells != step)
             raise ValueError(f"checkpoint {path} is of step {step} but cells {bad[:5].tolist()} "
-                             f"are at steps {cells[bad[:5]].tolist()} (interrupted between the "
-                             f"cells' and the field's checkpoint)")
+                             f"are at steps {cells[bad[:5]].tolist()} (made with resume = "
+                             f"checkpointed_step({ckdir})?)")
         solver = cls(disc, material, options, ckdir)
         solver.committed = FieldState(name, float(data["t"]),
                                       **{k: np.array(data[k]) for k in _FIELDS})

@@ -8,9 +8,12 @@ arrays never travel between steps: only strain increments go in and stresses com
   that copy as the cell's trial (replacing the previous trial); the committed state is
   untouched, so any number of Newton iterations leave no trace.
 * :meth:`commit` promotes the trials of a converged step and writes each cell's
-  committed state to ``ckdir/cell_<id>.npz`` (:func:`dem.checkpoint.save`, atomic),
-  tagged with the step number. A registry made with ``resume=True`` starts from those
-  files, so a lost worker's cells restart from their last converged step.
+  committed state to ``ckdir/cell_<id>_<step mod 2>.npz`` (:func:`dem.checkpoint.save`,
+  atomic), tagged with the step number: two generations, so the files of step k are
+  still there while those of step k + 1 are written (a run killed between the cells'
+  and the FE field's checkpoint of a step resumes from the previous one). A registry
+  made with ``resume=k`` starts from step k's files (k = 0: the prepared sample), so a
+  lost worker's cells restart from their last converged step.
 
 With ``probe`` > 0, :meth:`trial` also returns each cell's own tangent at its increment
 (:func:`~contfab.fexdem.cell.cell_tangent`, three more runs per cell; NaN where a probe
@@ -21,6 +24,7 @@ message instead of a stress; the caller turns it into a failed point.
 """
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import numpy as np
@@ -31,27 +35,33 @@ from contfab.fexdem.cell import (CELL_STATE, CellNotRelaxed, CellOptions, Increm
                                  advance_cell, cell_tangent, start_cell)
 
 
-def cell_file(ckdir: str | Path, cell: int) -> Path:
-    return Path(ckdir) / f"cell_{cell:06d}.npz"
+def cell_file(ckdir: str | Path, cell: int, fe_step: int) -> Path:
+    """Cell ``cell``'s checkpoint of converged step ``fe_step`` (module doc)."""
+    return Path(ckdir) / f"cell_{cell:06d}_{fe_step % 2}.npz"
 
 
 class CellRegistry:
     """Cells ``ids`` cloned from the prepared sample ``prepared`` (see the module doc)."""
 
     def __init__(self, prepared: str, ids, options: CellOptions, ckdir: str | None = None,
-                 resume: bool = False):
+                 resume: int = 0):
         self.ids = [int(i) for i in ids]
         self.options = options
         self.ckdir = ckdir
         state, self.dyn, _, _ = checkpoint.load(prepared)
+        if resume and ckdir is None:
+            raise ValueError(f"resume from step {resume} needs a checkpoint directory")
         self.committed, self.step = {}, {}
         for i in self.ids:
-            f = cell_file(ckdir, i) if ckdir is not None else None
-            if resume and f is not None and f.exists():
+            if resume:
+                f = cell_file(ckdir, i, resume)
                 self.committed[i], _, _, meta = checkpoint.load(f)
-                self.step[i] = int(meta["fe_step"])
+                if int(meta["fe_step"]) != resume:
+                    raise ValueError(f"cell checkpoint {f} is of step {meta['fe_step']}, not of "
+                                     f"the step {resume} to resume from")
             else:
-                self.committed[i], self.step[i] = start_cell(state.copy(), self.dyn), 0
+                self.committed[i] = start_cell(state.copy(), self.dyn)
+            self.step[i] = resume
         self.trials: dict = {}
 
     def steps(self) -> dict[int, int]:
@@ -64,34 +74,46 @@ class CellRegistry:
         Returns arrays over ``ids``: ``stress`` (k, 3) in P0, ``state`` (k, 4) (c, A, Bc,
         Bs), ``steps`` (k, 2) (strain, relaxation steps), ``ok`` (k,) bool, ``errors``
         {position in ids: message}, and ``tangent`` (k, 3, 3) in P0 (zeros unless
-        ``probe`` > 0, the relative probe of the cells' tangent; module doc).
+        ``probe`` > 0, the relative probe of the cells' tangent; module doc); ``cpu`` (k,)
+        the CPU time of each cell's runs (this thread's, in s) and ``wall`` the call's
+        wall time here (:mod:`contfab.fexdem.profile`).
         """
         k = len(ids)
         out = {"stress": np.zeros((k, 3)), "state": np.zeros((k, len(CELL_STATE))),
                "steps": np.zeros((k, 2), np.int64), "ok": np.ones(k, bool), "errors": {},
-               "tangent": np.zeros((k, 3, 3))}
+               "tangent": np.zeros((k, 3, 3)), "cpu": np.zeros(k)}
+        wall0 = time.perf_counter()
         for j, i in enumerate(ids):
-            st = self.committed[int(i)].copy()
-            try:
-                res = advance_cell(st, self.dyn, dstrain[j], float(dspin[j]), self.options)
-            except (CellNotRelaxed, IncrementTooLarge, DivergenceError) as exc:
-                out["ok"][j] = False
-                out["errors"][j] = str(exc)
-                self.trials.pop(int(i), None)
-                continue
-            self.trials[int(i)] = st
-            out["stress"][j], out["state"][j] = res.stress, res.state
-            out["steps"][j] = (res.strain_steps, res.relax_steps)
-            if probe > 0:
-                try:
-                    out["tangent"][j] = cell_tangent(self.committed[int(i)], self.dyn, dstrain[j],
-                                                     float(dspin[j]), res.stress, self.options, probe)
-                except (CellNotRelaxed, IncrementTooLarge, DivergenceError):
-                    out["tangent"][j] = np.nan
+            cpu0 = time.thread_time()
+            self._trial_cell(j, int(i), dstrain[j], float(dspin[j]), probe, out)
+            out["cpu"][j] = time.thread_time() - cpu0
+        out["wall"] = time.perf_counter() - wall0
         return out
 
-    def commit(self, fe_step: int) -> None:
-        """Promote every cell's latest trial and checkpoint it as step ``fe_step``."""
+    def _trial_cell(self, j: int, i: int, dstrain, dspin: float, probe: float, out: dict) -> None:
+        """Cell ``i``'s trial into row ``j`` of ``out`` (see :meth:`trial`)."""
+        st = self.committed[i].copy()
+        try:
+            res = advance_cell(st, self.dyn, dstrain, dspin, self.options)
+        except (CellNotRelaxed, IncrementTooLarge, DivergenceError) as exc:
+            out["ok"][j] = False
+            out["errors"][j] = str(exc)
+            self.trials.pop(i, None)
+            return
+        self.trials[i] = st
+        out["stress"][j], out["state"][j] = res.stress, res.state
+        out["steps"][j] = (res.strain_steps, res.relax_steps)
+        if probe > 0:
+            try:
+                out["tangent"][j] = cell_tangent(self.committed[i], self.dyn, dstrain, dspin,
+                                                 res.stress, self.options, probe)
+            except (CellNotRelaxed, IncrementTooLarge, DivergenceError):
+                out["tangent"][j] = np.nan
+
+    def commit(self, fe_step: int) -> dict:
+        """Promote every cell's latest trial and checkpoint it as step ``fe_step``; returns
+        the call's ``wall`` time and this thread's ``cpu`` time here (s)."""
+        wall0, cpu0 = time.perf_counter(), time.thread_time()
         missing = [i for i in self.ids if i not in self.trials]
         if missing:
             raise RuntimeError(f"commit of step {fe_step} without a trial for cells {missing[:5]}")
@@ -99,8 +121,9 @@ class CellRegistry:
             self.committed[i] = self.trials.pop(i)
             self.step[i] = fe_step
             if self.ckdir is not None:
-                checkpoint.save(cell_file(self.ckdir, i), self.committed[i], self.dyn, None,
+                checkpoint.save(cell_file(self.ckdir, i, fe_step), self.committed[i], self.dyn, None,
                                 {"fe_step": fe_step, "cell": i})
+        return {"wall": time.perf_counter() - wall0, "cpu": time.thread_time() - cpu0}
 
     def ping(self) -> int:
         return len(self.ids)
