@@ -71,11 +71,10 @@ the rigid-plastic ones by the elastic strain), so e.g. c and σ at a given total
 converge as O(1/λ) (tests/test_lambda_convergence.py measures the order: 1.0 ± 0.1).
 Stress ratios at yield (R/P = sin φ) do not depend on λ at all.
 
-**Parameter arrays** (built by :meth:`contfab.params.Params.array`; angles in radians)::
-
-    tier 0:  [0] K  [1] G  [2] sin φ  [3] sin ψ
-    tier 1:  [0] K  [1] G  [2] φ*  [3] φ' (per unit c)  [4] ψ' (per unit c)  [5] c*
-             [6] φ_min  [7] φ_max
+**Parameter arrays** (built by :meth:`contfab.params.Params.array`; angles in radians),
+read by the named offsets of :mod:`contfab.params`: tier 0 ``BULK`` K, ``SHEAR`` G,
+``SIN_PHI``, ``SIN_PSI``; tier 1 ``BULK``, ``SHEAR``, ``PHI_STAR`` φ*, ``DPHI_DC`` φ' and
+``DPSI_DC`` ψ' (per unit c), ``C_STAR`` c*, ``PHI_MIN``, ``PHI_MAX``.
 
 **State columns**: tier 0 (gp,), tier 1 (gp, c); gp accumulates Δεp1 - Δεp2.
 """

@@ -107,15 +107,12 @@ start (``_cutting_plane_guess``) gained ~2 % more for a cold compile of 2.5 min 
 1.5: not done.
 
 **Parameter array** (:meth:`contfab.params.Params.array` (2): the ``[regularization]``,
-``[tier1]`` and ``[tier2]`` parts; angles in radians; 0-7 are tier 1's layout)::
-
-    [0] K  [1] G  [2] φ* (tier 1's; unused here: a0 plays its role)  [3] φ'  [4] ψ'  [5] c*
-    [6] φ_min  [7] φ_max
-    [8] a0  [9] a1 (per unit A)  [10] a2 (per unit B)  [11] a3
-    [12] b0  [13] b1  [14] b2  [15] b3
-    [16] β (softmax sharpness)  [17] n_search (plane-search grid points per arc)
-    [18] fabric law (0 balance, 1 relaxation)  [19] κa  [20] kc  [21] ko
-    [22] A_c = z_c/π  [23] b_c = B_c/A_c  [24] k (relaxation rate per unit Δγs)
+``[tier1]`` and ``[tier2]`` parts; angles in radians), read by the named offsets of
+:mod:`contfab.params`: tier 1's (``BULK`` … ``PHI_MAX``; φ* unused here, a0 plays its role),
+then ``A0`` … ``A3`` and ``B0`` … ``B3`` (the plane friction and dilatancy coefficients),
+``SHARPNESS`` β, ``N_SEARCH`` (plane-search grid points per arc), ``FABRIC_LAW``
+(0 balance, 1 relaxation), ``KAPPA_A``, ``K_C``, ``K_O`` (balance law), ``A_CRIT`` A_c = z_c/π,
+``B_RATIO_CRIT`` b_c = B_c/A_c, ``RELAX_RATE`` k (relaxation rate per unit Δγs).
 """
 from __future__ import annotations
 
