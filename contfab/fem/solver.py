@@ -171,9 +171,8 @@ class NewtonOptions:
     last iteration: at a softening peak, points flipping between elastic unloading and
     plastic loading made Newton cycle at ~5e-6 forever (biaxial case). Records keep the
     residual sequence, so such steps are visible (:attr:`StepRecord.stalled`).
-    ``max_iter`` bounds the linear solves of a step. The next step grows by ``grow`` after
-    <= ``easy_iter`` solves, shrinks by ``shrink`` after > ``hard_iter``, and a step is cut
-    by ``cut`` on failure. ``extrapolate`` starts each
+    ``max_iter`` bounds the linear solves of a step. A step grows by ``grow`` after
+    <= ``easy_iter`` solves and is cut by ``cut`` on failure. ``extrapolate`` starts each
     step but a stage's first from the extrapolated increment, and on its failure from the
     committed state, before cutting (module doc; False: the committed state only).
     ``line_search`` halvings of a correction are tried when it does not reduce the free
@@ -191,8 +190,6 @@ class NewtonOptions:
     grow: float = 1.5
     cut: float = 0.25
     easy_iter: int = 8
-    hard_iter: int = 15
-    shrink: float = 0.5
     diverge: float = 1e6
     spin_step: float = 1e-7
     line_search: int = 4
@@ -206,12 +203,8 @@ class NewtonOptions:
                              f"tol_stall = {self.tol_stall}")
         if self.max_iter < 1:
             raise ValueError(f"max_iter = {self.max_iter} must be >= 1")
-        if not self.grow >= 1 or not 0 < self.cut < 1 or not 0 < self.shrink <= 1:
-            raise ValueError(f"need grow >= 1, 0 < cut < 1 and 0 < shrink <= 1, got "
-                             f"{self.grow}, {self.cut}, {self.shrink}")
-        if not 0 <= self.easy_iter <= self.hard_iter:
-            raise ValueError(f"need 0 <= easy_iter <= hard_iter, got {self.easy_iter}, "
-                             f"{self.hard_iter}")
+        if not self.grow >= 1 or not 0 < self.cut < 1:
+            raise ValueError(f"need grow >= 1 and 0 < cut < 1, got {self.grow}, {self.cut}")
         if self.line_search < 0:
             raise ValueError(f"line_search = {self.line_search} must be >= 0")
         if self.relaxation_time is not None and not (math.isfinite(self.relaxation_time)
@@ -424,8 +417,6 @@ class Solver:
             yield record
             if record.iterations <= self.options.easy_iter:
                 dt = min(dt * self.options.grow, stage.dt_max)
-            elif record.iterations > self.options.hard_iter:
-                dt = max(dt * self.options.shrink, stage.dt_min)
         if stage.reset_displacement:
             self.committed = replace(self.committed, u=np.zeros_like(self.committed.u))
 
