@@ -42,13 +42,13 @@ def _run_paths(args) -> None:
 # --------------------------------------------------------------------------- case
 
 def _add_case(p: argparse.ArgumentParser) -> None:
-    p.add_argument("name", nargs="?", help="a case of cases/ (omit to list them)")
+    p.add_argument("name", nargs="?", help="a boundary-value case (omit to list them)")
     p.add_argument("args", nargs=argparse.REMAINDER,
                    help="the case's own options (--fast, --json, --out DIR, ...; see --help)")
 
 
 def _run_case(args) -> int:
-    from contfab import cases
+    from contfab.scenes import case as cases
 
     if args.name is None:
         for name in cases.case_names():
@@ -149,7 +149,7 @@ def _add_point(p: argparse.ArgumentParser) -> None:
 
 
 def _run_point(args) -> None:
-    from contfab.point_job import run_job
+    from contfab.calibration.point_job import run_job
 
     _print_written(run_job(args.path, args.out, args.params, args.tier, args.increment))
 
@@ -167,7 +167,7 @@ def _executor_args(p: argparse.ArgumentParser) -> None:
 
 
 def _add_calibrate(p: argparse.ArgumentParser) -> None:
-    from contfab.campaign import CampaignSettings
+    from contfab.calibration.campaign import CampaignSettings
 
     d = CampaignSettings()
     p.add_argument("--tier", type=int, default=2, choices=(1, 2),
@@ -188,8 +188,8 @@ def _add_calibrate(p: argparse.ArgumentParser) -> None:
 
 
 def _run_calibrate(args) -> None:
-    from contfab.calibrate import calibrate
-    from contfab.campaign import CampaignSettings, default_runs
+    from contfab.calibration.calibrate import calibrate
+    from contfab.calibration.campaign import CampaignSettings, default_runs
 
     if args.seeds < 1:
         raise ValueError(f"--seeds {args.seeds} out of range; accepted >= 1")
@@ -221,7 +221,7 @@ def _add_compare(p: argparse.ArgumentParser) -> None:
 
 
 def _run_compare(args) -> None:
-    from contfab.compare import compare
+    from contfab.calibration.compare import compare
 
     _print_written(compare(args.path, args.out, args.params, args.tier, n=args.n, seed=args.seed,
                            kappa=args.kappa, density=args.density))
@@ -366,7 +366,7 @@ def _run_tradeoff(args) -> None:
 COMMANDS = {
     "paths": (_add_paths, _run_paths, "list the standard loading paths, or show one"),
     "dem": (_add_dem, _run_dem, "the 2D disc-DEM RVE: prepare samples, run loading paths"),
-    "case": (_add_case, _run_case, "run a boundary-value case of cases/ (or list them)"),
+    "case": (_add_case, _run_case, "run a boundary-value case (or list them)"),
     "bench": (_add_bench, _run_bench, "speed and memory benchmarks"),
     "fexdem": (_add_fexdem, _run_fexdem, "FE×DEM: a DEM cell per quadrature point, against "
                                          "tiers 1 and 2 on the same scene"),

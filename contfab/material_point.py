@@ -3,7 +3,7 @@ r"""The material-point driver: one constitutive point driven along a loading pat
 It runs the loading paths the DEM cell runs (:mod:`dem.paths`, DESIGN §5) through the
 one update interface :func:`contfab.models.tiers.update`, so every model tier works the
 same way, and returns the history as arrays (:class:`PointResult`); writing files is a
-separate step (:mod:`contfab.point_job`). Nothing here does I/O.
+separate step (:mod:`contfab.calibration.point_job`). Nothing here does I/O.
 
 **Kinematics.** Time is the reference strain τ of the path. An increment Δτ of a stage
 gives the velocity-gradient increment ΔL (components xx, yy, xy, yx; L_xy = ∂v_x/∂y) and
@@ -76,6 +76,7 @@ from dem.history import HISTORY_COLUMNS, history_row
 from dem.paths import COMPONENTS, STRESS_INDEX, Path, Stage, load_path
 from dem.threads import numba_threads
 from contfab.models import tiers
+from contfab.models.tiers import spin_derivative
 from contfab.params import Params, default_params
 
 RTOL = 1e-12
@@ -123,18 +124,6 @@ class IntegrationError(ValueError):
 
 
 # --------------------------------------------------------------------------- one increment
-
-def spin_derivative(stress: np.ndarray, tangent: np.ndarray, dstrain: np.ndarray) -> np.ndarray:
-    """S = ∂σ_{n+1}/∂Δω = W(σ_{n+1}) - T W(Δε) of an objective update (module doc).
-
-    One point ((3,), (3, 3), (3,)) or many ((n, 3), (n, 3, 3), (n, 3)) at once.
-    """
-    w_stress = np.stack([-2.0 * stress[..., 2], 2.0 * stress[..., 2],
-                         stress[..., 0] - stress[..., 1]], axis=-1)
-    w_strain = np.stack([-dstrain[..., 2], dstrain[..., 2],
-                         2.0 * (dstrain[..., 0] - dstrain[..., 1])], axis=-1)
-    return w_stress - np.einsum("...ij,...j->...i", tangent, w_strain)
-
 
 def control_jacobian(stress: np.ndarray, tangent: np.ndarray, dstrain: np.ndarray) -> np.ndarray:
     """(3, 4) ∂σ_{n+1}/∂ΔL, columns in COMPONENTS order (module doc)."""

@@ -3,12 +3,12 @@ choice a case makes (homogeneous biaxial -> tier 1, simple shear reversal -> tie
 import numpy as np
 import pytest
 
-from contfab.cases import run_case
+from contfab.scenes.case import run_case
 from contfab.fem.material import TierMaterial
-from contfab.indicators import Tracker, indicators
+from contfab.selection.indicators import Tracker, indicators
 from contfab.models import tiers
 from contfab.params import ParamError, default_params
-from contfab.tradeoff.auto_tier import AutoTierError, choose, load_table
+from contfab.selection.auto_tier import AutoTierError, choose, load_table
 
 TOL = 0.12
 """A tolerance inside the window the shipped bounds leave between the classes (below)."""
@@ -188,7 +188,7 @@ def test_the_shipped_bounds_are_the_calibration_errors(tmp_path):
     (the errors, bitwise; the costs are a machine's measurement and are passed through)."""
     from pathlib import Path
 
-    from contfab.tradeoff.auto_tier import table_from_calibration
+    from contfab.selection.auto_tier import table_from_calibration
     shipped = load_table()
     costs = {(k, r["model"]): r["cost"] for k, rows in shipped.items() for r in rows}
     errors = Path(__file__).resolve().parent.parent / "docs" / "calibration" / "errors.csv"

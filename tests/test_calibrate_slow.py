@@ -6,8 +6,8 @@ import tomllib
 
 import pytest
 
-from contfab.calibrate import calibrate
-from contfab.campaign import CampaignSettings
+from contfab.calibration.calibrate import calibrate
+from contfab.calibration.campaign import CampaignSettings
 from contfab.params import default_params, default_params_path, load_params
 
 

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from contfab.calibrate import calibrate
-from contfab.campaign import CampaignError, CampaignSettings, Layout, RunSpec, run_campaign
+from contfab.calibration.calibrate import calibrate
+from contfab.calibration.campaign import CampaignError, CampaignSettings, Layout, RunSpec, run_campaign
 from contfab.executor import make_executor
 from contfab.params import load_params
 from dem.checkpoint import load as load_checkpoint
@@ -27,7 +27,7 @@ sigma = { xx = -1.0 }
 """
 SCRIPT = """
 import sys
-from contfab.campaign import CampaignSettings, RunSpec, run_campaign
+from contfab.calibration.campaign import CampaignSettings, RunSpec, run_campaign
 from contfab.executor import make_executor
 cs = CampaignSettings(n=40, seeds=(1,), runs=(RunSpec(sys.argv[2], "dense", 1e3),), probe=False,
                       checkpoint_every=2)

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from contfab.curves import (curve_table, dem_curve, errors, make_grid, read_curve, sample,
+from contfab.calibration.curves import (curve_table, dem_curve, errors, make_grid, read_curve, sample,
                             stage_abscissa)
 from dem.fileio import write_csv
 from dem.paths import parse_path

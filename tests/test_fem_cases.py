@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from contfab.cases import run_case
+from contfab.scenes.case import run_case
 from contfab.cli import main
 from contfab.params import default_params
 
@@ -94,7 +94,7 @@ def test_simple_shear_reversal_fast_against_the_point_driver_and_the_dem(tmp_pat
                           capture_output=True, text=True, timeout=180)
     assert done.returncode == 0, done.stderr
     out = json.loads(done.stdout)
-    with open(root / "cases/data/simple_shear_reversal_dem.csv") as fh:
+    with open(root / "contfab/scenes/data/simple_shear_reversal_dem.csv") as fh:
         rows = list(csv.DictReader(fh))
     forward_end = [r for r in rows if r["stage"] == "0"][-1]
     expected = {"+1": forward_end, "-1": rows[-1]}
@@ -127,7 +127,7 @@ def _failure(value: float):
 def test_a_failed_study_run_is_recorded_and_the_others_still_run(monkeypatch):
     """strip_footing --psi phi 10 0: the psi = 10 run fails, psi = 0 still runs, the table
     row says 'failed'; a failure of the headline (associated) run is still an error."""
-    from contfab.cases import build_parser, load_case
+    from contfab.scenes.case import build_parser, load_case
     from contfab.fem.solver import ConvergenceError
 
     case = load_case("strip_footing")

@@ -1,10 +1,10 @@
-"""The least-squares residual vector of contfab.fitting on a stored DEM curve.
+"""The least-squares residual vector of contfab.calibration.fitting on a stored DEM curve.
 
 Each path and quantity contributes the whole curve, (model - DEM)/scale/sqrt(n) per grid
 point, and one steady-state term, (window mean of the model - that of the DEM)/scale. A
 model that misses grid points (a failed run, or one DEM row a time step past the path's
 end) is penalized at those points in the curve part, while the steady-state term is taken
-over the points it has, as in contfab.curves.errors — it turned into the constant PENALTY
+over the points it has, as in contfab.calibration.curves.errors — it turned into the constant PENALTY
 when the model missed the DEM grid's last point, so the fit never saw the steady states.
 """
 import json
@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from contfab.curves import errors, read_curve
-from contfab.fitting import PENALTY, Target, residuals
+from contfab.calibration.curves import errors, read_curve
+from contfab.calibration.fitting import PENALTY, Target, residuals
 from dem.paths import load_path
 
 REF = Path(__file__).parent / "data" / "dem_reference"
@@ -49,7 +49,7 @@ def test_steady_state_term_survives_a_missing_end_point(target):
     window = target.curve.grid.residual_window()
     moved = abs(dem[-1] - dem[window].mean()) / (window.sum() - 1) / SCALE["RP"]
     assert abs(r[-1] - SHIFT / SCALE["RP"]) <= moved * (1 + 1e-9)
-    # and it is the reported steady error of the same sample (contfab.curves.errors)
+    # and it is the reported steady error of the same sample (contfab.calibration.curves.errors)
     err = errors(target.curve, shifted(target, [n - 1]), ("RP",))["RP"]["residual_error"]
     assert err / SCALE["RP"] == pytest.approx(r[-1], rel=1e-12)
 

@@ -27,9 +27,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from contfab.compare import compare
-from contfab.curves import errors, read_curve
-from contfab.fitting import Target, run_model
+from contfab.calibration.compare import compare
+from contfab.calibration.curves import errors, read_curve
+from contfab.calibration.fitting import Target, run_model
 from contfab.params import load_params
 from dem.paths import load_path
 
@@ -155,7 +155,7 @@ def test_models_match_the_live_dem(live, name, tier, request):
     out, _ = live
     path, density = LIVE[name]
     run = out / name / "dem" / "run"
-    from contfab.curves import dem_curve, read_history
+    from contfab.calibration.curves import dem_curve, read_history
 
     target = Target(name, load_path(path), dem_curve(load_path(path), [read_history(run / "history.csv")]))
     e = errors(target.curve, run_model(PARAMS, tier, target)[0])

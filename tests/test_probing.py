@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from contfab import material_point as mp
-from contfab.curves import history_of
+from contfab.calibration.curves import history_of
 from contfab.params import load_params
-from contfab.probing import ProbeResponse, analyse, cone_angles, probe_response
+from contfab.calibration.probing import ProbeResponse, analyse, cone_angles, probe_response
 from dem.paths import parse_path
 
 PARAMS = load_params(Path(__file__).parent / "data" / "model_params.toml")
@@ -80,7 +80,7 @@ def test_the_cone_tiers_report_their_closed_form_flow_direction():
     calibration report's answer where the tier-1 probes have none (zero hardening)."""
     import math
 
-    from contfab.calibrate import _cone_probe
+    from contfab.calibration.calibrate import _cone_probe
     from contfab.params import default_params
 
     prm = default_params()

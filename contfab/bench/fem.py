@@ -1,6 +1,6 @@
 """``contfab bench fem``: where a Newton iteration of the footing spends its time.
 
-The strip footing (``cases/strip_footing.py``, N_q, φ = 30°, associated flow) on its
+The strip footing (:mod:`contfab.scenes.strip_footing`, N_q, φ = 30°, associated flow) on its
 mesh level 3 with P2 elements (~47k DOFs), pushed to collapse. Every call of the
 constitutive update (``TierMaterial.update`` and ``spin_tangent``: the update itself,
 line-search trials and the exact spin tangent), of the assembly (strain, internal force,
@@ -19,7 +19,7 @@ import contextlib
 import statistics
 import time
 
-from contfab.cases import load_case
+from contfab.scenes.case import load_case
 from contfab.fem import assembly, material, solver
 from contfab.params import default_params
 

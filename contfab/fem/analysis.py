@@ -13,7 +13,7 @@ the curve so far as its ``curve`` (also without an output directory). With
 killed run leaves its curve so far (the input of a resumed run, ``resume``).
 
 Each committed step also feeds the loading indicators of every quadrature point
-(:class:`contfab.indicators.Tracker`: axes rotation, reversal, distance from c*), the
+(:class:`contfab.selection.indicators.Tracker`: axes rotation, reversal, distance from c*), the
 run-time input of ``tier = "auto"`` (:mod:`contfab.fem.auto`); ``RunResult.indicators``.
 """
 from __future__ import annotations
@@ -28,7 +28,7 @@ from tqdm import tqdm
 
 from contfab.fem.output import VtuSeries, plot_curve, plot_field
 from contfab.fem.solver import ConvergenceError, Solver, Stage
-from contfab.indicators import Tracker
+from contfab.selection.indicators import Tracker
 from dem.fileio import write_csv, write_json
 
 

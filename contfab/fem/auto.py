@@ -6,11 +6,11 @@ tolerance, from the measured bounds and the indicators of the run.
 ``solve(params, point_tiers) -> dict`` is a case's analysis with the model given per
 quadrature point (an int: one tier everywhere; an array: mixed tiers,
 :class:`contfab.fem.material.TierMaterial` ``point_tiers``); its dict holds at least
-``indicators`` (the run's :class:`contfab.indicators.Tracker`), ``point_updates``
+``indicators`` (the run's :class:`contfab.selection.indicators.Tracker`), ``point_updates``
 ({tier: point updates}) and ``wall_s``.
 
 **Passes.** Every point starts with the model chosen for monotonic loading
-(:func:`contfab.tradeoff.auto_tier.choose`). After a run, the points whose indicators put
+(:func:`contfab.selection.auto_tier.choose`). After a run, the points whose indicators put
 them in the reversal class get the model chosen for that class where it is a higher tier
 than theirs (``mode`` "mixed"), or every point does as soon as one asks (``mode``
 "uniform": one tier in the mesh). If a point changed, the analysis runs again from the
@@ -26,7 +26,7 @@ reversal class's model is chosen among tiers >= the monotonic one, so a flagged 
 never drops below its neighbours' model.
 
 Parameters: the case's ``params`` with the ``[tier2]`` section of the reversal class's
-model (:func:`~contfab.tradeoff.auto_tier.params_for`; both files share the tier-0/1
+model (:func:`~contfab.selection.auto_tier.params_for`; both files share the tier-0/1
 sections, so the bounds of both classes apply to one parameter set).
 """
 from __future__ import annotations
@@ -37,7 +37,7 @@ from typing import Callable
 import numpy as np
 
 from contfab.params import ParamError, Params
-from contfab.tradeoff.auto_tier import AutoTierError, choose, params_for
+from contfab.selection.auto_tier import AutoTierError, choose, params_for
 
 MODES = ("mixed", "uniform")
 

@@ -19,14 +19,14 @@ needs no convergence study in ε (the case scripts still report one). ε = 0 tur
 
 **Spin tangent.** Every tier rotates its inputs by the exact spin angle and updates
 objectively, so ∂σ/∂ω follows from the strain tangent without another update call
-(:func:`contfab.material_point.spin_derivative`, S = W(σ) - T W(Δε)).
+(:func:`contfab.models.tiers.spin_derivative`, S = W(σ) - T W(Δε)).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from contfab.material_point import spin_derivative
 from contfab.models import tiers
+from contfab.models.tiers import spin_derivative
 from contfab.models.cone import STATUS_APEX
 from contfab.params import ParamError, Params
 from contfab.tensors import isotropic_stiffness

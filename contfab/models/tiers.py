@@ -149,3 +149,21 @@ def update(tier: int, stress_n, state_n, dstrain, dspin, params: Params,
     else:
         kernel(*args)
     return out
+
+
+def spin_derivative(stress: np.ndarray, tangent: np.ndarray, dstrain: np.ndarray) -> np.ndarray:
+    """S = ∂σ_{n+1}/∂Δω = W(σ_{n+1}) - T W(Δε) of an objective update.
+
+    Every tier rotates its inputs by the exact angle Δω and then updates objectively,
+    U(Qσ, Qq, QΔεQᵀ) = Q U(σ, q, Δε) Qᵀ; differentiating that identity in the rotation angle
+    gives S = W(σ_{n+1}) - T W(Δε), W(s) = d/dα (Q_α s Q_αᵀ) at α = 0, that is
+    (-2 s_xy, 2 s_xy, s_xx - s_yy) for a stress and (-Δγ, Δγ, 2(Δε_xx - Δε_yy)) for Δε,
+    with T the consistent tangent.
+
+    One point ((3,), (3, 3), (3,)) or many ((n, 3), (n, 3, 3), (n, 3)) at once.
+    """
+    w_stress = np.stack([-2.0 * stress[..., 2], 2.0 * stress[..., 2],
+                         stress[..., 0] - stress[..., 1]], axis=-1)
+    w_strain = np.stack([-dstrain[..., 2], dstrain[..., 2],
+                         2.0 * (dstrain[..., 0] - dstrain[..., 1])], axis=-1)
+    return w_stress - np.einsum("...ij,...j->...i", tangent, w_strain)

@@ -1,4 +1,4 @@
-"""FEM studies: the strip footing (``cases/strip_footing.py``) over element × mesh × load step.
+"""FEM studies: the strip footing (:mod:`contfab.scenes.strip_footing`) over element × mesh × load step.
 
 Each point is one footing analysis (tier 0, associated flow, the case's mesh family at
 ``level``, largest load step ``dt_max`` as a fraction of the push); the error is
@@ -10,7 +10,7 @@ The model tier is not a knob here: the exact factors hold for the constant-φ co
 tiers 1 and 2 carry φ(c) and the fabric, for which no closed form exists (their cost per
 point is measured by ``contfab bench model``).
 
-The biaxial shear band (``cases/biaxial_shear_band.py``, dense tier 1, rough platens) over
+The biaxial shear band (:mod:`contfab.scenes.biaxial_shear_band`, dense tier 1, rough platens) over
 element × mesh level: two errors, the peak σ1/σ3 against the closed form
 (1 + sin φ0)/(1 − sin φ0) at the initial density, and the band angle against Arthur's
 45° + (φ0 + ψ0)/4 (the middle of the Roscoe–Coulomb range), relative. The post-peak
@@ -21,7 +21,7 @@ from __future__ import annotations
 import functools
 import math
 
-from contfab.cases import load_case
+from contfab.scenes.case import load_case
 from contfab.params import default_params, default_params_digest
 from contfab.tradeoff.study import Clock, Study
 

@@ -1,11 +1,11 @@
 """Model tiers 0/1/2 against the DEM on a loading path: error per quantity against cost.
 
 The DEM reference is the seed mean of ``seeds`` dense samples (μ_prep = 0, μ = 0.5) of N
-discs run on the path (:func:`contfab.curves.dem_curve`); it is computed once per process
+discs run on the path (:func:`contfab.calibration.curves.dem_curve`); it is computed once per process
 and path (not timed: it is the reference, not a knob). Each point runs the material point
 of one tier with the shipped parameters from the DEM's mean start state
-(:func:`contfab.fitting.run_model`) and compares on the DEM's grid
-(:func:`contfab.curves.errors`): the RMS difference of R/P, ε_v and c over the path, and for
+(:func:`contfab.calibration.fitting.run_model`) and compares on the DEM's grid
+(:func:`contfab.calibration.curves.errors`): the RMS difference of R/P, ε_v and c over the path, and for
 a multi-stage path (the reversal) the RMS of R/P over the first 0.1 strain after the
 reversal (``RP_transient``). Cost: CPU µs per material-point increment.
 
@@ -13,7 +13,7 @@ Two studies, tiers 0, 1 and 2 each: ``tier_biaxial`` (monotonic: biaxial compres
 ``tier_reversal`` (simple shear with reversal; tier 2 joined it on 2026-12-01, once its
 local solve from the DEM's anisotropic start fabric was fixed: it had not finished this
 path in 200 s of CPU). Their DEM reference is small (``--fast``: N = 100, one seed); the
-bounds :mod:`contfab.tradeoff.auto_tier` chooses from come from the calibration campaign
+bounds :mod:`contfab.selection.auto_tier` chooses from come from the calibration campaign
 instead (N = 1000, 3 seeds).
 """
 from __future__ import annotations
@@ -23,8 +23,8 @@ import functools
 import numpy as np
 
 from contfab import material_point as mp
-from contfab.curves import dem_curve, errors
-from contfab.fitting import Target, run_model
+from contfab.calibration.curves import dem_curve, errors
+from contfab.calibration.fitting import Target, run_model
 from contfab.params import default_params, default_params_digest
 from contfab.tradeoff.study import Clock, Study, dem_code_digest
 from dem.job import Settings, prepare_sample

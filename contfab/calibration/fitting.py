@@ -2,7 +2,7 @@
 
 The material point (:mod:`contfab.material_point`) runs each fitted path from the DEM's
 mean initial state (packing fraction c0 and, for tier 2, the fabric A0, Bc0, Bs0; stress
--P0 I) and is sampled on the DEM curve's grid (:mod:`contfab.curves`). For every path and
+-P0 I) and is sampled on the DEM curve's grid (:mod:`contfab.calibration.curves`). For every path and
 fitted quantity q the residual vector holds
 
     (model - DEM mean) / scale_q / sqrt(n)     at the n grid points   (the whole curve)
@@ -32,7 +32,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from contfab import material_point as mp
-from contfab.curves import DemCurve, history_of, sample
+from contfab.calibration.curves import DemCurve, history_of, sample
 from contfab.params import ParamError, Params
 from dem.paths import Path
 
@@ -151,7 +151,7 @@ def residuals(samples: Sequence[Mapping[str, np.ndarray]], refs: Sequence[Mappin
             d = (model[q][ok] - dem[ok]) / scale[q]
             d[~np.isfinite(d)] = PENALTY
             parts.append(d / math.sqrt(max(ok.sum(), 1)))
-            # Window means as in contfab.curves.errors: over the points each curve has
+            # Window means as in contfab.calibration.curves.errors: over the points each curve has
             # (a model run ends at the path's end, a DEM grid can pass it by a time step:
             # one missing end point must not turn the steady-state term into PENALTY).
             w = window & ok

@@ -1,10 +1,10 @@
 """``contfab calibrate``: the model's parameters from the embedded DEM (DESIGN §7, issue 4).
 
-1. **DEM campaign** (:mod:`contfab.campaign`): dense and loose biaxial at the fitted κ,
+1. **DEM campaign** (:mod:`contfab.calibration.campaign`): dense and loose biaxial at the fitted κ,
    simple shear at constant normal stress with a reversal, isotropic compression (fitted);
    held-out paths; the stress-probing runs. K seeds each, through an executor
    (:mod:`contfab.executor`), resumable.
-2. **Fit** (:mod:`contfab.fitting`), on the seed-mean DEM curves of the fitted paths:
+2. **Fit** (:mod:`contfab.calibration.fitting`), on the seed-mean DEM curves of the fitted paths:
    tier 1 (φ*, φ', ψ', c*; quantities R/P, c); for tier 2, for *both* fabric laws, first the
    law's coefficients alone on the fabric (A, Bc, Bs) with the planes reduced to tier 1
    (a0 = φ*, the rest 0: the fabric then does not feed back on the stress), then the plane
@@ -12,7 +12,7 @@
    the smaller error on the held-out paths goes into ``[tier2]``; both are written.
    Tier 0 is set to the critical state of tier 1 (φ = φ*, ψ = 0).
 3. **Evaluation**: every model on every path (fitted and held out), errors per path and
-   quantity (:func:`contfab.curves.errors`), and stress probing (:mod:`contfab.probing`):
+   quantity (:func:`contfab.calibration.curves.errors`), and stress probing (:mod:`contfab.calibration.probing`):
    DEM per seed, the models from their own state at the same point of the preload path
    (probes 100 times smaller: the model's incremental response; the DEM needs finite
    probes to rise above its noise).
@@ -38,9 +38,9 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from contfab import fitting
-from contfab.campaign import ROLES, CampaignSettings, Layout, run_campaign
-from contfab.curves import curve_table, dem_curve, read_history
+from contfab.calibration import fitting
+from contfab.calibration.campaign import ROLES, CampaignSettings, Layout, run_campaign
+from contfab.calibration.curves import curve_table, dem_curve, read_history
 from contfab.executor import make_executor
 from contfab.params import Params
 from contfab.toml_writer import dumps
@@ -110,7 +110,7 @@ def template(cs: CampaignSettings, targets: Sequence[fitting.Target], tier: int)
                   "b_ratio_crit": min(max(b_res / a_res, 0.01), 0.59)},
         "initial": {"c0": c0, "A0": a0, "B0": 0.0, "theta_p0_deg": 0.0},
     }
-    return Params.from_dict(doc, source="contfab.calibrate template")
+    return Params.from_dict(doc, source="contfab.calibration.calibrate template")
 
 
 # --------------------------------------------------------------------------- fits
@@ -151,7 +151,7 @@ def objective(params: Params, tier: int, targets, scale) -> float:
 
 def dem_probing(cs: CampaignSettings, layout: Layout) -> dict:
     """Per-seed DEM probe analyses and their mean ± sd."""
-    from contfab.probing import analyse, probe_response
+    from contfab.calibration.probing import analyse, probe_response
 
     fam = load_path(layout.probes_path)
     n = len(fam.expand())
@@ -172,8 +172,8 @@ def model_probing(params: Params, tier: int, layout: Layout, start: Mapping[str,
     """(response, analysis, preload result) of the model: the preload path from the DEM's
     mean start state, then the probe family (magnitude × MODEL_PROBE_SCALE) from its end."""
     from contfab import material_point as mp
-    from contfab.curves import history_of
-    from contfab.probing import analyse, probe_response
+    from contfab.calibration.curves import history_of
+    from contfab.calibration.probing import analyse, probe_response
 
     state0 = {"c": start["c"]} if tier < 2 else dict(start)
     pre = mp.run_path(load_path(layout.preload_path), params, tier, state0=state0)
@@ -208,7 +208,7 @@ def calibrate(out: str | FsPath, tier: int = 2, campaign: CampaignSettings | Non
     cs.validate()
     out = FsPath(out)
     t0 = time.perf_counter()
-    from contfab.campaign import warm_kernels
+    from contfab.calibration.campaign import warm_kernels
     with make_executor(executor, workers, scheduler, warm=warm_kernels) as ex:
         layout = run_campaign(cs, out, ex)
     t_dem = time.perf_counter() - t0
@@ -261,8 +261,8 @@ def _write_toml(file: FsPath, doc: Mapping, header: str) -> FsPath:
 
 
 def _evaluate_and_report(out: FsPath, cs, layout, targets, models, progress) -> dict:
-    from contfab.curves import errors
-    from contfab.report import error_rows, overlay_plot, write_tables
+    from contfab.calibration.curves import errors
+    from contfab.calibration.report import error_rows, overlay_plot, write_tables
 
     rows, written = [], {}
     every = [(role, t) for role in ROLES for t in targets[role]]
@@ -298,7 +298,7 @@ def _write_reference(folder: FsPath, cs, every, models) -> FsPath:
     their runs, start states and the errors of the calibrated models on exactly these
     stored curves: the data of tests/test_material_point_vs_dem.py (copied to
     tests/data/dem_reference)."""
-    from contfab.curves import errors, read_curve
+    from contfab.calibration.curves import errors, read_curve
 
     index = {"generated_by": "contfab calibrate: report/reference of the campaign directory",
              "campaign": {k: v for k, v in cs.to_dict().items() if k != "runs"}, "curves": {}}
@@ -313,7 +313,7 @@ def _write_reference(folder: FsPath, cs, every, models) -> FsPath:
 
 
 def _probing(cs, layout, models, out: FsPath) -> dict:
-    from contfab.report import probe_plot
+    from contfab.calibration.report import probe_plot
 
     dem = dem_probing(cs, layout)
     result = {"dem": _mean_sd([a.to_dict() for a in dem["analyses"]]),
@@ -340,11 +340,11 @@ def _probing(cs, layout, models, out: FsPath) -> dict:
 
 def _cone_probe(params: Params, tier: int, c: float) -> dict:
     """Yield normal, flow direction and non-associativity δ (degrees) of the isotropic cone
-    at packing fraction ``c`` (:func:`contfab.probing.cone_angles`): what the probes of a
+    at packing fraction ``c`` (:func:`contfab.calibration.probing.cone_angles`): what the probes of a
     tier-0/1 point must find, and its answer where they have none (at zero hardening an
     outward stress probe has no bounded solution)."""
     from contfab.models import cone
-    from contfab.probing import cone_angles
+    from contfab.calibration.probing import cone_angles
 
     if tier == 0:
         phi, psi = math.radians(params.tier0.phi_deg), math.radians(params.tier0.psi_deg)
@@ -387,7 +387,7 @@ TRANSIENT_PATHS = ("simple_shear_reversal", "direction_change")
 
 def transient_rows(rows: Sequence[Mapping]) -> list[dict]:
     """Where fabric matters — after the shear reversal and the 90° change of direction —
-    each model's RMS error over the transient (:data:`contfab.curves.TRANSIENT_LENGTH` of
+    each model's RMS error over the transient (:data:`contfab.calibration.curves.TRANSIENT_LENGTH` of
     the last stage) and over the whole path, and its ratio to tier 1's."""
     out = []
     keyed = {(r["path"], r["model"], r["quantity"]): r for r in rows}
@@ -441,7 +441,7 @@ def _summary(cs, tier, fits, choice, heldout_objective, rows, probing, seconds, 
 
 
 def _write_markdown(file: FsPath, s: Mapping) -> FsPath:
-    from contfab.report import markdown_table
+    from contfab.calibration.report import markdown_table
 
     lines = [f"# Calibration report\n", f"Command: `{s['provenance']['command']}`  ",
              f"Wall time: DEM {s['seconds']['dem']:.0f} s, fit {s['seconds']['fit']:.0f} s, "
@@ -462,7 +462,7 @@ def _write_markdown(file: FsPath, s: Mapping) -> FsPath:
     lines.append(markdown_table(s["transients"], ("path", "model", "quantity", "rms_transient",
                                                   "rms", "transient_vs_tier1")))
     lines.append("## Errors per path, model and quantity (θp in degrees)\n")
-    from contfab.report import ERROR_COLUMNS
+    from contfab.calibration.report import ERROR_COLUMNS
     lines.append(markdown_table(s["errors"], ERROR_COLUMNS))
     if s["probing"]:
         p = s["probing"]

@@ -1,9 +1,9 @@
 """The DEM-vs-model report: overlay plots and error tables (PNG, CSV, Markdown).
 
 ``overlay_plot``: one PNG per path, six panels (R/P, ε_v, c, A, B, θp) against the
-path's continuous abscissa (:attr:`contfab.curves.Grid.x`): the DEM seed mean with a band
+path's continuous abscissa (:attr:`contfab.calibration.curves.Grid.x`): the DEM seed mean with a band
 of ± one seed standard deviation, and one line per model. ``error_rows`` flattens
-:func:`contfab.curves.errors` into table rows written by :func:`write_tables` as CSV and a
+:func:`contfab.calibration.curves.errors` into table rows written by :func:`write_tables` as CSV and a
 Markdown table. ``probe_plot``: the plastic strain responses of a probe family, DEM and
 models, with the fitted yield normals and flow directions. Every file is written
 atomically; matplotlib is imported lazily (Agg).
@@ -16,7 +16,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from contfab.curves import QUANTITIES, DemCurve
+from contfab.calibration.curves import QUANTITIES, DemCurve
 from contfab.plots import pyplot, save_figure
 from dem.fileio import atomic_path, write_csv
 

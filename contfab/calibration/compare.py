@@ -1,25 +1,25 @@
 """``contfab compare``: the DEM and the material point on one loading path, side by side.
 
 The DEM prepares a sample (dense: μ_prep = 0, or loose: μ_prep = μ) and runs the path
-(resumable, as a campaign job: :func:`contfab.campaign.run_dem_job`); the material point
+(resumable, as a campaign job: :func:`contfab.calibration.campaign.run_dem_job`); the material point
 runs the same path from the DEM sample's initial state (c0, and the fabric for tier 2)
-with the given parameters. Both are sampled at the same strains (:mod:`contfab.curves`).
+with the given parameters. Both are sampled at the same strains (:mod:`contfab.calibration.curves`).
 Writes into the output directory
 
     dem/                    the DEM run (history.csv, history.json, checkpoints, plots)
     model_<name>.csv        the material point's history (one per probe of a family)
     compare_<name>.png      the overlay (R/P, ε_v, c, A, B, θp)
-    errors.csv, errors.json the error metrics per quantity (:func:`contfab.curves.errors`)
+    errors.csv, errors.json the error metrics per quantity (:func:`contfab.calibration.curves.errors`)
 """
 from __future__ import annotations
 
 from pathlib import Path as FsPath
 
-from contfab.campaign import DemJob, run_dem_job
-from contfab.curves import dem_curve, errors, read_history
-from contfab.fitting import Target, run_model
+from contfab.calibration.campaign import DemJob, run_dem_job
+from contfab.calibration.curves import dem_curve, errors, read_history
+from contfab.calibration.fitting import Target, run_model
 from contfab.params import default_params, default_params_path, load_params
-from contfab.report import error_rows, overlay_plot, write_tables
+from contfab.calibration.report import error_rows, overlay_plot, write_tables
 from dem.fileio import write_csv, write_json
 from dem.job import Settings
 from dem.paths import load_path

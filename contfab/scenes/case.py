@@ -1,9 +1,9 @@
-"""The boundary-value cases of ``cases/``: discovery, common options and the error report.
+"""The boundary-value cases: discovery, common options and the error report.
 
-A case is a script ``cases/NAME.py`` exposing ``DESCRIPTION``, ``add_arguments(parser)``
-and ``run(args) -> CaseResult``; it ends with
-``if __name__ == "__main__": raise SystemExit(main(sys.modules[__name__]))`` so it runs
-as ``python cases/NAME.py`` and as ``contfab case NAME``. Common options:
+A case is a module ``contfab.scenes.NAME`` (listed in :data:`SCENES`) exposing
+``DESCRIPTION``, ``add_arguments(parser)`` and ``run(args) -> CaseResult``. It runs as
+``contfab case NAME``, and as ``python cases/NAME.py`` (a thin script calling
+:func:`main` on the module, to read and copy). Common options:
 ``--fast`` (the test-suite preset), ``--json`` (print one JSON object: the headline
 figure's reference, computed value and relative error, and every figure), ``--out``
 (output directory), ``--quiet`` (no progress bars).
@@ -11,14 +11,15 @@ figure's reference, computed value and relative error, and every figure), ``--ou
 from __future__ import annotations
 
 import argparse
-import importlib.util
+import importlib
 import json
 import math
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
-CASES_DIR = Path(__file__).resolve().parent.parent / "cases"
+SCENES = ("biaxial_shear_band", "retaining_wall", "simple_shear_reversal", "strip_footing")
+"""The case modules of this package, by name."""
 
 
 @dataclass
@@ -75,19 +76,15 @@ def failure_note(exc, *columns: str) -> dict:
 
 
 def case_names() -> list[str]:
-    """Names of the case scripts in ``cases/``."""
-    return sorted(p.stem for p in CASES_DIR.glob("*.py") if not p.stem.startswith("_"))
+    """Names of the cases (:data:`SCENES`)."""
+    return list(SCENES)
 
 
 def load_case(name: str):
-    """Import ``cases/NAME.py`` as a module (a ValueError listing the cases if unknown)."""
-    path = CASES_DIR / f"{name}.py"
-    if not path.is_file():
-        raise ValueError(f"unknown case {name!r}; available: {', '.join(case_names())}")
-    spec = importlib.util.spec_from_file_location(f"contfab_case_{name}", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    """The module ``contfab.scenes.NAME`` (a ValueError listing the cases if unknown)."""
+    if name not in SCENES:
+        raise ValueError(f"unknown case {name!r}; available: {', '.join(SCENES)}")
+    return importlib.import_module(f"contfab.scenes.{name}")
 
 
 def build_parser(module, prog: str) -> argparse.ArgumentParser:
@@ -163,7 +160,7 @@ def _plain(obj):
 
 def main(module, argv: list[str] | None = None, prog: str | None = None) -> int:
     """Run a case module from the command line: parse, run, print; exit 2 on a clear input error."""
-    name = Path(module.__file__).stem
+    name = module.__name__.rsplit(".", 1)[-1]
     args = build_parser(module, prog or f"python cases/{name}.py").parse_args(argv)
     _resolve_out(args, name)
     try:

@@ -15,7 +15,7 @@ Two ingredients:
   class's path (:func:`measure_costs`). Each model row names its parameter file (the
   shipped defaults, or the calibration's fit of the other fabric law, shipped beside them
   in ``contfab/data``); both files share the tier-0/1 sections.
-* **Indicators** of the loading each point sees (:mod:`contfab.indicators`: rotation of
+* **Indicators** of the loading each point sees (:mod:`contfab.selection.indicators`: rotation of
   the principal stress axes, load reversal, distance from the critical state), which give
   its loading class.
 
@@ -32,7 +32,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping
 
-from contfab.indicators import CLASSES, Indicators
+from contfab.selection.indicators import CLASSES, Indicators
 from contfab.params import Params, load_params
 
 TABLE_FILE = Path(__file__).resolve().parent / "data" / "tier_errors.csv"

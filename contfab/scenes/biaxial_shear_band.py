@@ -1,0 +1,299 @@
+"""Plane biaxial test of a dense specimen with rough platens: peak, softening, shear band.
+
+Scene (DESIGN §8). A specimen W × H = 1 × 2.5, confining pressure p0 on both sides (dead
+load), rough rigid platens (ux = 0 on top and bottom; the bottom is fixed, the top moves
+down by δ·t). Model tier 1 (φ(c), ψ(c) around the critical state c*), dense: c0 =
+c* + Δc (default Δc = 0.03, the parameter file's φ', ψ' give φ(c0), ψ(c0)); a small
+imperfection, a disc of radius 0.15 W at the left side, 0.3 H up, with c lowered by
+0.01, triggers the band. Triangles are unstructured (Delaunay of a jittered grid):
+a structured mesh's diagonals pull the band to their own angle (45° measured on a
+square-cell union-jack mesh). Initial stress -p0 I, p_ref = p0.
+
+Dilation lowers c, φ(c) falls toward φ*: the response peaks and softens, the
+deformation localizes. The band angle θ to the minor principal stress direction (the
+horizontal) is measured from the principal axis of the elements carrying the
+plastic shear strain of the last tenth of the push (weighted by it), and compared
+with Coulomb π/4 + φ/2, Roscoe π/4 + ψ/2 and Arthur π/4 + (φ + ψ)/4 at the peak state
+(φ = φ(c0), ψ = ψ(c0)). The headline figure is θ against the nearest end of the
+Roscoe–Coulomb range (reference = the angle itself inside the range).
+
+Softening without an internal length makes the post-peak branch mesh dependent (the
+band is as thin as the elements allow): ``--study`` runs mesh levels 1..3 and λ, 10λ,
+and reports the post-peak stress ratio at the end of the push per mesh, and the peak
+change with λ (the rigid-plastic limit). A study run whose Newton fails is recorded in
+the notes (message, last converged strain and stress ratio, the peak so far) and the
+others still run; a failure of the main run is an error.
+"""
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+
+import numpy as np
+
+from contfab.scenes.case import CaseResult, Figure, failure_note
+from contfab.fem import analysis, loads
+from contfab.fem import mesh as meshes
+from contfab.fem.assembly import Discretization
+from contfab.fem.auto import run_auto
+from contfab.selection.auto_tier import Choice, params_for
+from contfab.fem.elements import ELEMENTS
+from contfab.fem.output import plot_field
+from contfab.fem.material import TierMaterial
+from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver, Stage
+from contfab.material_point import run_path
+from contfab.models.cone import friction_angles
+from contfab.params import ParamError, default_params, load_params
+
+DESCRIPTION = "dense biaxial specimen, rough platens: peak, softening, shear-band angle"
+
+WIDTH, HEIGHT = 1.0, 2.5
+SPOT = (0.0, 0.3 * HEIGHT, 0.15 * WIDTH, 0.01)
+"""Imperfection: centre x, y, radius, and how much lower its c is."""
+
+
+def band_angle(disc: Discretization, dgp: np.ndarray) -> float:
+    """Angle (degrees, in [0, 90]) of the dominant band to the horizontal.
+
+    A Hough transform of the plastic shear strain increment ``dgp`` (per element): for
+    each direction θ (0.5° steps) the element centres are binned across the line
+    direction in bins two elements wide; the direction whose fullest bin holds the most
+    strain is the band's. Works for one band and for crossing bands (the stronger wins).
+    """
+    centres = disc.mesh.p[:, disc.mesh.t].mean(axis=1).T
+    width = 2.0 * np.sqrt(disc.area() / disc.ne)
+    best, best_theta = -1.0, 0.0
+    for theta in np.radians(np.arange(0.0, 180.0, 0.5)):
+        normal = centres @ np.array([-np.sin(theta), np.cos(theta)])
+        bins = np.floor((normal - normal.min()) / width).astype(np.int64)
+        score = np.bincount(bins, weights=dgp).max()
+        if score > best:
+            best, best_theta = score, theta
+    angle = math.degrees(best_theta)
+    return min(angle, 180.0 - angle)
+
+
+def solve(params, element: str, level: int, dense: float, strain: float, out: Path | None,
+          progress: bool, lam: float | None = None, tier=1, homogeneous: bool = False) -> dict:
+    """One biaxial test with model ``tier`` (default 1; an array: a tier per quadrature
+    point); returns the peak, the end state, the band angle and Newton figures.
+    ``homogeneous``: smooth platens and no imperfection (the field stays homogeneous: the
+    material point's biaxial path; no band, angle NaN)."""
+    if not 1 <= level <= 6:
+        raise ParamError(f"mesh level = {level} is outside the accepted range [1, 6]")
+    low = -0.05 if homogeneous else 0.0       # a loose specimen hardens: no band to trigger
+    if not low < dense <= 0.08:
+        raise ParamError(f"dense = {dense:g} (c0 - c*) is outside the accepted range "
+                         f"({low:g}, 0.08]")
+    if not 0.0 < strain <= 0.2:
+        raise ParamError(f"strain = {strain:g} is outside the accepted range (0, 0.2]")
+    p0 = 1.0
+    c_star = params.tier1.c_star
+    mixed = np.ndim(tier) > 0
+    params = params.with_tier(int(np.max(tier))).replace("regularization", p_ref=p0) \
+        .replace("initial", c0=c_star + dense)
+    if lam is not None:
+        params = params.replace("regularization", lam=lam)
+    h = WIDTH / (8 * level)
+    if ELEMENTS[element].mesh_kind == "tri":
+        mesh = meshes.delaunay_rectangle(WIDTH, HEIGHT, h)
+    else:
+        mesh = meshes.tensor(np.linspace(0, WIDTH, 8 * level + 1),
+                             np.linspace(0, HEIGHT, 20 * level + 1), kind="quad")
+    disc = Discretization(mesh, element)
+    material = TierMaterial(params, point_tiers=tier) if mixed else TierMaterial(params, tier=tier)
+    n = disc.npoints
+    state0 = material.initial_state(n)
+    x, y = disc.points.T
+    spot = np.hypot(x - SPOT[0], y - SPOT[1]) < SPOT[2]
+    if not homogeneous:
+        state0[spot, 1] -= SPOT[3]
+    stress0 = np.column_stack((-p0 * np.ones(n), -p0 * np.ones(n), np.zeros(n)))
+    solver = Solver(disc, material, stress0, state0, NewtonOptions())
+    top = loads.boundary_dofs(disc, "top", "y")
+    if homogeneous:   # smooth platens: ux free but at one bottom node (the rigid-body mode)
+        held = loads.boundary_dofs(disc, "bottom", "x")[:1]
+    else:             # rough platens
+        held = np.concatenate([loads.boundary_dofs(disc, "bottom", "x"),
+                               loads.boundary_dofs(disc, "top", "x")])
+    fixed = np.unique(np.concatenate([held, loads.boundary_dofs(disc, "bottom", "y"), top]))
+    f_dead = loads.surface_load(disc, "left", pressure=p0) + \
+        loads.surface_load(disc, "right", pressure=p0)
+    stage = Stage("compress", fixed, np.where(np.isin(fixed, top), -strain * HEIGHT, 0.0),
+                  f_dead, dt0=0.01, dt_max=0.02, dt_min=1e-5)
+
+    def measure(s: Solver) -> dict:
+        sigma1 = -s.reactions(top) / WIDTH
+        return {"axial_strain": float(-s.committed.u[top].mean() / HEIGHT),
+                "stress_ratio": sigma1 / p0,
+                "sin_phi_mob": (sigma1 - p0) / (sigma1 + p0)}
+
+    name = f"biaxial_shear_band_{element}_L{level}" + (
+        "_mixed" if mixed else "" if tier == 1 else f"_tier{tier}")
+    outputs = analysis.Outputs(out, name, frame_every=10, curve_axes=("axial_strain", "stress_ratio"))
+    gp_marks = []
+    t0 = time.perf_counter()
+    result = analysis.run(solver, [stage], _recording(measure, gp_marks), outputs,
+                          progress=progress)
+    if out is not None:
+        result.files.append(plot_field(
+            Path(out) / f"{name}_reversal_class.png", disc,
+            disc.element_mean(result.indicators.reversal_class().astype(float)),
+            "share of points in the reversal class", f"{name}: axes rotation > 15° or reversal"))
+        if mixed:
+            result.files.append(plot_field(Path(out) / f"{name}_tiers.png", disc,
+                                           disc.element_mean(np.asarray(tier, float)),
+                                           "model tier (element mean)", f"{name}: tiers carried"))
+    ratio = result.column("stress_ratio")
+    t = result.column("t")
+    gp = [g for tt, g in gp_marks if tt >= 0.9 * t[-1]]
+    dgp = disc.element_mean(solver.committed.state[:, 0] - gp[0])
+    c0 = c_star + dense
+    phi, psi, _, _ = friction_angles(c0, *(params.array(1)[2:]))
+    return {"peak": float(ratio.max()), "peak_strain": float(result.column("axial_strain")[np.argmax(ratio)]),
+            "end": float(ratio[-1]), "angle": math.nan if homogeneous else band_angle(disc, dgp),
+            "curve": {k: result.column(k) for k in ("axial_strain", "stress_ratio", "sin_phi_mob")},
+            "params": params,
+            "phi0": math.degrees(phi), "psi0": math.degrees(psi), "dofs": disc.ndofs,
+            "wall_s": time.perf_counter() - t0, "steps": len(result.iterations),
+            "median_newton": float(np.median(result.iterations)),
+            "band_c_min": float(solver.committed.state[:, 1].min()), "files": result.files,
+            "indicators": result.indicators, "point_updates": dict(material.point_updates)}
+
+
+def _recording(measure, marks):
+    """``measure`` that also keeps (t, gp) of each step, for the band's strain increment."""
+    def wrapped(s: Solver) -> dict:
+        marks.append((s.committed.t, s.committed.state[:, 0]))
+        return measure(s)
+    return wrapped
+
+
+def add_arguments(p) -> None:
+    p.add_argument("--element", choices=sorted(ELEMENTS), default="P2",
+                   help="element family (default P2: the element study's choice)")
+    p.add_argument("--level", type=int, default=2, help="mesh density level, 1..6")
+    p.add_argument("--dense", type=float, default=0.03,
+                   help="c0 - c* (default 0.03; > 0, or > -0.05 with --homogeneous)")
+    p.add_argument("--strain", type=float, default=0.04, help="final axial strain (default 0.04)")
+    p.add_argument("--params", default=None, help="parameter file (default: the shipped one)")
+    p.add_argument("--homogeneous", action="store_true",
+                   help="smooth platens, no imperfection: the homogeneous biaxial, against the "
+                        "material-point driver on the same path (no band)")
+    p.add_argument("--tier", choices=("1", "2", "auto"), default="1",
+                   help="model tier (default 1); auto: the cheapest model per point whose "
+                        "measured bound meets --tolerance (contfab.fem.auto)")
+    p.add_argument("--tolerance", type=float, default=0.12,
+                   help="auto: tolerated RMS error of R/P against the DEM (default 0.12)")
+    p.add_argument("--compare", action="store_true",
+                   help="with --tier auto: also run every point at tier 2 (the reversal class's "
+                        "model) and at tier 1, and report the differences and the saving")
+    p.add_argument("--study", action="store_true",
+                   help="also mesh levels 1..3 (post-peak mesh dependence) and 10 lambda")
+
+
+def _homogeneous_result(r: dict, auto: dict | None, args) -> CaseResult:
+    """Peak and end σ1/σ3 of the homogeneous specimen against the material-point driver on
+    the biaxial path (tier 1, the same parameters and start; steps of 1e-3 in strain)."""
+    point = run_path("biaxial", r["params"], tier=1, increment=1e-3)
+    eps, ratio = -point["eps_yy"], point["syy"] / point["sxx"]
+    keep = eps <= args.strain * (1 + 1e-9)
+    end = float(np.interp(r["curve"]["axial_strain"][-1], eps, ratio))
+    figures = [Figure("peak sigma1/sigma3 vs the material point", r["peak"],
+                      float(ratio[keep].max()), "material-point driver, biaxial path"),
+               Figure("end sigma1/sigma3 vs the material point", r["end"], end,
+                      "material-point driver, biaxial path")]
+    notes = {k: r[k] for k in ("peak", "peak_strain", "end", "dofs", "wall_s", "steps",
+                               "median_newton")}
+    if auto is not None:
+        notes["auto"] = auto
+    return CaseResult(figures, notes, r["files"])
+
+
+def compare_uniform(r: dict, auto: dict, params, args) -> dict:
+    """The auto run ``r`` against every point at tier 2 (the reversal class's model, the
+    reference) and at tier 1: RMS and largest difference of R/P = sin φ_mob over the
+    auto run's strain grid, peak and end σ1/σ3, wall time and point updates."""
+    p2 = params_for(params, Choice(**auto["reversal"]))
+    runs = {t: solve(p2, args.element, args.level, args.dense, args.strain, None, False, tier=t,
+                     homogeneous=args.homogeneous) for t in (2, 1)}
+    ref = runs[2]["curve"]
+
+    def diff(run: dict) -> np.ndarray:
+        x = run["curve"]["axial_strain"]
+        return np.interp(x, ref["axial_strain"], ref["sin_phi_mob"]) - run["curve"]["sin_phi_mob"]
+
+    out = {}
+    for name, run in (("auto", r), ("tier1", runs[1]), ("tier2", runs[2])):
+        d = diff(run)
+        out[name] = {"rms_RP_diff_vs_tier2": float(np.sqrt(np.mean(d**2))),
+                     "max_RP_diff_vs_tier2": float(np.max(np.abs(d))), "peak": run["peak"],
+                     "end": run["end"], "wall_s": run["wall_s"],
+                     "point_updates": {int(k): int(v) for k, v in run["point_updates"].items()}}
+    out["auto"]["wall_s_all_passes"] = auto["wall_s"]
+    out["tier2_updates_share"] = (out["auto"]["point_updates"].get(2, 0)
+                                  / out["tier2"]["point_updates"][2])
+    return out
+
+
+STUDY_KEYS = ("dofs", "peak", "peak_strain", "end", "angle", "steps", "median_newton", "wall_s")
+"""What ``--study`` records of each of its runs."""
+
+
+def run(args) -> CaseResult:
+    params = default_params() if args.params is None else load_params(args.params)
+    if args.fast:   # the test-suite preset: P2 on the level-2 mesh (the default), because at
+        # level 1 (1394 DOFs, 8 elements across) the band sits at 47 deg against Roscoe's
+        # 53.7 with the calibrated parameters: too coarse to resolve it (level 2: 53.5)
+        args.element, args.level = "P2", 2
+    if args.compare and args.tier != "auto":
+        raise ParamError(f"--compare needs --tier auto (got --tier {args.tier})")
+    auto = None
+    if args.tier == "auto":
+        r, auto = run_auto(lambda p, t: solve(p, args.element, args.level, args.dense,
+                                              args.strain, args.out, not args.quiet, tier=t,
+                                              homogeneous=args.homogeneous),
+                           params, args.tolerance, min_tier=1)
+    else:
+        r = solve(params, args.element, args.level, args.dense, args.strain, args.out,
+                  not args.quiet, tier=int(args.tier), homogeneous=args.homogeneous)
+    if args.homogeneous:
+        return _homogeneous_result(r, auto, args)
+    coulomb = 45 + r["phi0"] / 2
+    roscoe = 45 + r["psi0"] / 2
+    arthur = 45 + (r["phi0"] + r["psi0"]) / 4
+    nearest = min(max(r["angle"], roscoe), coulomb)
+    figures = [Figure("band angle to the horizontal [deg] vs the Roscoe-Coulomb range",
+                      r["angle"], nearest, f"Roscoe {roscoe:.1f}, Coulomb {coulomb:.1f}"),
+               Figure("band angle vs Arthur [deg]", r["angle"], arthur, "Arthur")]
+    notes = {k: r[k] for k in ("peak", "peak_strain", "end", "phi0", "psi0", "band_c_min",
+                               "dofs", "wall_s", "steps", "median_newton")}
+    notes["softening"] = r["end"] / r["peak"] - 1.0
+    if auto is not None:
+        notes["auto"] = auto
+        if args.compare:
+            notes["auto_vs_uniform"] = compare_uniform(r, auto, params, args)
+    if args.study:
+        lam = params.regularization.lam
+        t0 = time.perf_counter()
+        try:
+            stiff = solve(params, args.element, args.level, args.dense, args.strain, None,
+                          False, lam=10 * lam)
+            notes["peak_change_10x_lambda"] = stiff["peak"] / r["peak"] - 1.0
+            notes["lambda_10x"] = {k: stiff[k] for k in STUDY_KEYS}
+        except ConvergenceError as exc:
+            notes["lambda_10x"] = failure_note(exc, "stress_ratio", "axial_strain")
+            notes["lambda_10x"]["wall_s"] = time.perf_counter() - t0
+        for level in (1, 2, 3):
+            t0 = time.perf_counter()
+            try:
+                m = r if level == args.level else solve(params, args.element, level, args.dense,
+                                                        args.strain, None, False)
+                notes[f"level{level}"] = {k: m[k] for k in STUDY_KEYS}
+            except ConvergenceError as exc:
+                notes[f"level{level}"] = failure_note(exc, "stress_ratio", "axial_strain")
+                notes[f"level{level}"]["wall_s"] = time.perf_counter() - t0
+    return CaseResult(figures, notes, r["files"])
+

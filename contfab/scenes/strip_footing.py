@@ -1,0 +1,279 @@
+"""Rigid rough strip footing on a cohesionless cone: N_q and N_γ against exact solutions.
+
+Scene (half model, symmetric about x = 0; DESIGN §8). A footing of half-width b = B/2 = 1
+on the surface y = 0 of a soil block x ∈ [0, L], y ∈ [-H, 0], with L and H set from the
+size of the Prandtl mechanism of φ (:func:`mechanism_size`) so that the failure zone
+stays inside. Rollers on x = 0 (symmetry) and x = L, fixed base. The footing is rigid and
+rough: its nodes move down by δ·t with ux = 0. The bearing pressure is q_u = Q/b, Q the
+reaction force on the footing (of the half model). Model tier 0 (constant φ, ψ).
+
+* ``--factor Nq``: weightless soil, surcharge q on the free surface, initial stress
+  σ = -q I (in equilibrium with the surcharge and the rollers). N_q = q_u/q against
+  Prandtl–Reissner, N_q = e^{π tan φ} tan²(π/4 + φ/2): exact for associated flow, and for
+  rough and smooth footings alike (weightless soil).
+* ``--factor Ngamma``: unit weight γ, no surcharge. A geostatic stage equilibrates
+  σyy = γy, σxx = K0 σyy (K0 = 1 - sin φ) under gravity, then displacements are zeroed.
+  N_γ = q_u/(½ γ B) against the exact method-of-characteristics values for a rough
+  footing and associated flow of Martin (2005), "Exact bearing capacity calculations
+  using the method of characteristics", Proc. 11th IACMAG, Turin, vol. 4, 441-450:
+  N_γ = 14.75 at φ = 30°. With ψ < φ the collapse load drops (no exact value; reported).
+
+The computed factor is the bearing pressure at the end of the push; the push is a
+multiple of the elastic settlement scale N·b/λ, and the plateau is checked (the load
+change over the last fifth of the push is reported as ``plateau_drift``).
+"""
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+
+import numpy as np
+
+from contfab.scenes.case import CaseResult, Figure, failure_note
+from contfab.fem import analysis, loads
+from contfab.fem import mesh as meshes
+from contfab.fem.assembly import Discretization
+from contfab.fem.elements import ELEMENTS
+from contfab.fem.material import TierMaterial
+from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver, Stage
+from contfab.params import ParamError, default_params, load_params
+from dem.fileio import write_csv
+
+DESCRIPTION = "rigid rough strip footing: N_q (Prandtl-Reissner) and N_gamma (Martin 2005)"
+
+B_HALF = 1.0
+MECHANISM_SCALE = {"Nq": 1.0, "Ngamma": 0.6}
+"""The N_γ mechanism (rough footing, self-weight) is about 0.6x the size of Prandtl's."""
+PUSH_DT_MIN = 1e-6
+"""Smallest push step. With ψ < φ a zone at yield with almost no plastic flow makes its
+points flip between elastic and plastic from one Newton iterate to the next, leaving a
+residual ∝ the step (2e-7 at 1e-6 of the push, 3e-5 at 1e-4; docs/fem_validation.md §5),
+so these steps need to be small; the associated runs never get near it."""
+MARTIN_2005_NGAMMA_ROUGH = {30.0: 14.75}
+"""Exact N_γ, rough strip footing, associated flow (Martin 2005, method of characteristics)."""
+
+
+def reference_factor(factor: str, phi_deg: float) -> float:
+    """The exact factor for associated flow: Prandtl-Reissner N_q, or Martin's N_γ (NaN
+    where no exact value is tabulated)."""
+    if factor == "Nq":
+        return prandtl_nq(phi_deg)
+    return MARTIN_2005_NGAMMA_ROUGH.get(phi_deg, math.nan)
+
+
+def prandtl_nq(phi_deg: float) -> float:
+    """N_q = e^{π tan φ} tan²(π/4 + φ/2) (Prandtl 1920, Reissner 1924)."""
+    phi = math.radians(phi_deg)
+    return math.exp(math.pi * math.tan(phi)) * math.tan(math.pi / 4 + phi / 2) ** 2
+
+
+def mechanism_size(phi_deg: float, b: float = B_HALF) -> tuple[float, float]:
+    """(width from the axis, depth) of the Prandtl mechanism of a footing of half-width b.
+
+    Active wedge under the footing, log-spiral fan r = r0 e^{θ tan φ} about the footing
+    edge over θ ∈ [0, π/2] with r0 = b / cos(π/4 + φ/2), passive wedge to the surface:
+    width b + 2 r1 cos(π/4 - φ/2) with r1 = r0 e^{(π/2) tan φ}; the deepest point is at
+    θ = π/4 + φ/2, depth r0 e^{θ tan φ} cos φ.
+    """
+    phi = math.radians(phi_deg)
+    r0 = b / math.cos(math.pi / 4 + phi / 2)
+    r1 = r0 * math.exp(math.pi / 2 * math.tan(phi))
+    width = b + 2 * r1 * math.cos(math.pi / 4 - phi / 2)
+    depth = r0 * math.exp((math.pi / 4 + phi / 2) * math.tan(phi)) * math.cos(phi)
+    return width, depth
+
+
+def footing_mesh(phi_deg: float, level: int, kind: str = "tri", factor: str = "Nq"):
+    """Structured mesh resolving the mechanism box, coarse outside it.
+
+    The mechanism box is 1.1x the mechanism's width and 1.2x its depth
+    (:func:`mechanism_size`, scaled by :data:`MECHANISM_SCALE`); the block is 1.6x as
+    wide and 2.2x as deep. Intervals per level: 6 across the footing half-width (refined
+    2x toward its edge), 16 across the rest of the box and 10 down it (growing 4x away
+    from the edge and the surface), 3 beyond it. The element study found the error set
+    by the resolution of the whole mechanism (its slip lines), not by the edge
+    singularity: grading harder toward the edge made N_q worse at equal DOFs.
+    """
+    if not 1 <= level <= 8:
+        raise ParamError(f"mesh level = {level} is outside the accepted range [1, 8]")
+    width, depth = (MECHANISM_SCALE[factor] * v for v in mechanism_size(phi_deg))
+    box_w, box_d = 1.1 * width, 1.2 * depth
+    xs = np.concatenate((meshes.graded(0.0, B_HALF, 6 * level, 0.5),
+                         meshes.graded(B_HALF, box_w, 16 * level, 4.0)[1:],
+                         meshes.graded(box_w, 1.6 * width, 3 * level, 2.0)[1:]))
+    ys = np.concatenate((meshes.graded(-2.2 * depth, -box_d, 3 * level, 0.5),
+                         meshes.graded(-box_d, 0.0, 10 * level, 0.25)[1:]))
+    m = meshes.tensor(xs, ys, kind=kind)
+    tol = 1e-9
+    return meshes.name_boundaries(m, {
+        "footing": lambda x: (np.abs(x[1]) < tol) & (x[0] < B_HALF + tol),
+        "free": lambda x: (np.abs(x[1]) < tol) & (x[0] > B_HALF - tol),
+    })
+
+
+def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int, params,
+          out: Path | None, progress: bool, push: float = 15.0,
+          apex_stiffness: float = 1e-9, dt_max: float = 0.05) -> dict:
+    """One footing analysis; returns the factor, its curve summary, Newton figures, files.
+
+    ``push`` is the footing settlement in units of the elastic scale N·b/λ; ``dt_max`` the
+    largest load step, as a fraction of the push (``contfab tradeoff fem_footing_nq``
+    measures its effect).
+    """
+    stress_scale = 1.0     # q (N_q) or γ b (N_γ): the scene's stress unit
+    params = params.with_tier(0).replace("tier0", phi_deg=phi_deg, psi_deg=psi_deg) \
+        .replace("regularization", p_ref=stress_scale)
+    lam = params.regularization.lam
+    disc = Discretization(footing_mesh(phi_deg, level, ELEMENTS[element].mesh_kind, factor),
+                          element)
+    material = TierMaterial(params, tier=0, apex_stiffness=apex_stiffness)
+    n = disc.npoints
+    stress0 = np.zeros((n, 3))
+    f_dead = np.zeros(disc.ndofs)
+    y = disc.points[:, 1]
+    if factor == "Nq":
+        q = stress_scale
+        stress0[:, 0] = stress0[:, 1] = -q
+        f_dead += loads.surface_load(disc, "free", pressure=q)
+        norm = q * B_HALF                       # N_q = Q / (q b)
+    else:
+        gamma = stress_scale / B_HALF
+        k0 = 1.0 - math.sin(math.radians(phi_deg))
+        stress0[:, 1] = gamma * y
+        stress0[:, 0] = k0 * gamma * y
+        f_dead += loads.body_force(disc, by=-gamma)
+        norm = gamma * B_HALF**2                # N_γ = q_u / (½ γ B) = Q / (γ b²)
+    reference = reference_factor(factor, phi_deg)
+    solver = Solver(disc, material, stress0, material.initial_state(n), NewtonOptions())
+    dofs = {f"{s}_{c}": loads.boundary_dofs(disc, s, c)
+            for s, c in (("left", "x"), ("right", "x"), ("bottom", "x"), ("bottom", "y"),
+                         ("footing", "x"), ("footing", "y"))}
+    supports = np.unique(np.concatenate([dofs[k] for k in ("left_x", "right_x", "bottom_x",
+                                                            "bottom_y")]))
+    stages = []
+    if factor == "Ngamma":
+        stages.append(Stage("geostatic", supports, np.zeros(len(supports)), f_dead, dt0=1.0,
+                            dt_max=1.0, dt_min=1.0, reset_displacement=True))
+    footing = np.concatenate((dofs["footing_x"], dofs["footing_y"]))
+    fixed = np.unique(np.concatenate((supports, footing)))
+    scale = reference if math.isfinite(reference) else prandtl_nq(phi_deg)
+    delta = push * scale * B_HALF / lam
+    increment = np.where(np.isin(fixed, dofs["footing_y"]), -delta, 0.0)
+    stages.append(Stage("push", fixed, increment, f_dead, dt0=min(0.02, dt_max), dt_max=dt_max,
+                        dt_min=PUSH_DT_MIN))
+
+    def measure(s: Solver) -> dict:
+        u = s.committed.u[dofs["footing_y"]]
+        return {"settlement": float(-u.mean() / B_HALF) if s.committed.stage == "push" else 0.0,
+                factor: -s.reactions(dofs["footing_y"]) / norm}
+
+    name = f"strip_footing_{factor}_phi{phi_deg:g}_psi{psi_deg:g}"
+    width, depth = (MECHANISM_SCALE[factor] * v for v in mechanism_size(phi_deg))
+    outputs = analysis.Outputs(out, name, frame_every=5, curve_axes=("settlement", factor),
+                               reference=reference if math.isfinite(reference) else None,
+                               reference_label="exact (associated)",
+                               window=(0.0, 1.2 * width, -1.2 * depth, 0.0))
+    t0 = time.perf_counter()
+    result = analysis.run(solver, stages, measure, outputs, progress=progress,
+                          record_stages=["push"])
+    wall = time.perf_counter() - t0
+    values = result.column(factor)
+    tail = values[result.column("t") >= 0.8 * result.column("t")[-1]]
+    return {"phi": phi_deg, "psi": psi_deg, "reference": reference, "computed": float(values[-1]),
+            "peak": float(values.max()), "plateau_drift": float(tail[-1] / tail[0] - 1.0),
+            "dofs": disc.ndofs, "element": element, "level": level, "wall_s": wall,
+            "steps": len(result.iterations),
+            "median_newton": float(np.median(result.iterations)),
+            "residuals": [r.residuals for r in solver.records[-3:]],
+            "files": result.files}
+
+
+def add_arguments(p) -> None:
+    p.add_argument("--factor", choices=("Nq", "Ngamma"), default="Nq")
+    p.add_argument("--phi", type=float, nargs="+", default=None,
+                   help="friction angle(s) in degrees (default: the parameter file's tier-0 phi "
+                        "for N_q, 30 for N_gamma, where the exact value is known)")
+    p.add_argument("--psi", nargs="+", default=["phi"],
+                   help="dilatancy angle(s) in degrees, or 'phi' for associated flow (default); "
+                        "several give the drop of the factor with psi")
+    p.add_argument("--element", choices=sorted(ELEMENTS), nargs="+", default=["P3"],
+                   help="element famil(y/ies) (default P3: the element study's choice)")
+    p.add_argument("--level", type=int, nargs="+", default=[1], help="mesh density level(s), 1..8")
+    p.add_argument("--params", default=None, help="parameter file (default: the shipped one)")
+    p.add_argument("--lam", type=float, default=None, help="override the regularization lambda")
+    p.add_argument("--apex-stiffness", type=float, default=1e-9,
+                   help="Newton-matrix stiffness fraction at apex points (0: off)")
+
+
+TABLE_COLUMNS = ("factor", "phi", "psi", "element", "level", "dofs", "computed", "reference",
+                 "relative_error", "drop_vs_associated", "plateau_drift", "steps",
+                 "median_newton", "wall_s", "status")
+
+
+def run(args) -> CaseResult:
+    """Every (φ, ψ, element, level) combination; a table CSV when there is more than one.
+
+    A combination whose Newton fails (ConvergenceError) is recorded in the notes
+    (:func:`contfab.scenes.case.failure_note`: message, last converged settlement step and
+    factor) and as a ``failed`` table row, and the others still run; only the run behind
+    the headline figure (the first associated one with an exact reference) re-raises.
+    """
+    params = default_params() if args.params is None else load_params(args.params)
+    if args.lam is not None:
+        params = params.replace("regularization", lam=args.lam)
+    if args.fast:   # the test-suite preset: P2 on the level-1 mesh
+        args.element, args.level = ["P2"], [1]
+    phis = args.phi or ([30.0] if args.factor == "Ngamma" else [params.tier0.phi_deg])
+    symbol = "N_q" if args.factor == "Nq" else "N_gamma"
+    source = "Prandtl-Reissner" if args.factor == "Nq" else "Martin (2005)"
+    figures, notes, files, rows = [], {}, [], []
+    for phi in phis:
+        for element in args.element:
+            for level in args.level:
+                associated = None
+                for psi_arg in args.psi:
+                    psi = phi if psi_arg == "phi" else float(psi_arg)
+                    label = f"{symbol}(phi={phi:g}, psi={psi:g}, {element}, level {level})"
+                    if len(args.element) == len(args.level) == 1:
+                        label = f"{symbol}(phi={phi:g}, psi={psi:g})"
+                    headline = not figures and psi == phi and \
+                        math.isfinite(reference_factor(args.factor, phi))
+                    t0 = time.perf_counter()
+                    try:
+                        r = solve(phi, psi, args.factor, element, level, params, args.out,
+                                  not args.quiet, apex_stiffness=args.apex_stiffness)
+                    except ConvergenceError as exc:
+                        if headline:
+                            raise
+                        notes[label] = failure_note(exc, args.factor, "settlement")
+                        notes[label]["wall_s"] = time.perf_counter() - t0
+                        rows.append([args.factor, phi, psi, element, level, math.nan, math.nan,
+                                     reference_factor(args.factor, phi), math.nan, math.nan,
+                                     math.nan, math.nan, math.nan, math.nan, "failed"])
+                        continue
+                    if psi == phi:
+                        associated = r["computed"]
+                    drop = r["computed"] / associated - 1.0 if associated else math.nan
+                    if math.isfinite(r["reference"]) and psi == phi:
+                        figures.append(Figure(label, r["computed"], r["reference"], source))
+                    notes[label] = {k: r[k] for k in ("computed", "peak", "plateau_drift", "dofs",
+                                                      "wall_s", "steps", "median_newton")}
+                    notes[label]["last_step_residuals"] = r["residuals"][-1]
+                    if psi != phi and associated:
+                        notes[label]["drop_vs_associated"] = drop
+                    rows.append([args.factor, phi, psi, element, level, r["dofs"], r["computed"],
+                                 r["reference"], r["computed"] / r["reference"] - 1.0, drop,
+                                 r["plateau_drift"], r["steps"], r["median_newton"], r["wall_s"],
+                                 "converged"])
+                    files += r["files"]
+    if not figures:
+        raise ParamError("no reference for these angles and flow rules: the references are "
+                         "for associated flow (psi = phi), and N_gamma's exact value is known "
+                         "at phi = 30 only")
+    if len(rows) > 1 and args.out is not None:
+        table = Path(args.out) / f"strip_footing_{args.factor}_table.csv"
+        files.append(write_csv(table, TABLE_COLUMNS, rows))
+    return CaseResult(figures, notes, files)
+
