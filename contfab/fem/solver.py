@@ -179,9 +179,7 @@ class NewtonOptions:
     residual (apex/face switching made plain Newton cycle on the N_γ footing);
     ``spin_step`` is the difference step of the spin tangent (0: off).
     ``relaxation_time`` τ (in the stages' ``duration`` unit) makes every step a Duvaut–Lions
-    viscoplastic step with k = Δt/τ (:mod:`contfab.fem.viscous`); ``viscous_ratios``: a step
-    whose inviscid starts both fail is retried as a Duvaut–Lions step with each of these k
-    in turn before it is cut (module doc, "Viscous fallback").
+    viscoplastic step with k = Δt/τ (:mod:`contfab.fem.viscous`).
     """
 
     tol: float = 1e-8
@@ -195,7 +193,6 @@ class NewtonOptions:
     line_search: int = 4
     extrapolate: bool = True
     relaxation_time: float | None = None
-    viscous_ratios: tuple[float, ...] = ()
 
     def __post_init__(self):
         if not 0 < self.tol <= self.tol_stall < 1:
@@ -211,9 +208,6 @@ class NewtonOptions:
                                                      and self.relaxation_time > 0):
             raise ValueError(f"relaxation_time = {self.relaxation_time!r} is outside the "
                              "accepted range (0, inf)")
-        if not all(math.isfinite(k) and k > 0 for k in self.viscous_ratios):
-            raise ValueError(f"viscous_ratios = {self.viscous_ratios!r}: each must lie in "
-                             "(0, inf)")
         if not 0 <= self.spin_step < 1e-3:
             raise ValueError(f"spin_step = {self.spin_step} must lie in [0, 1e-3)")
 
@@ -344,7 +338,7 @@ class Solver:
         self.options = options
         self._ratio = math.inf
         self._elastic = None
-        if options.relaxation_time is not None or options.viscous_ratios:
+        if options.relaxation_time is not None:
             if getattr(material, "spin_tangent", None) is None:
                 raise ValueError("a viscous step needs the material's exact spin tangent "
                                  "(material.spin_tangent)")
@@ -387,17 +381,14 @@ class Solver:
             dt = min(dt, 1.0 - t)
             ratio = math.inf if opt.relaxation_time is None else \
                 dt * stage.duration / opt.relaxation_time
-            extrapolated = None if rate is None else self.committed.u + dt * rate
-            tries = [(extrapolated, ratio)] * (rate is not None) + [(None, ratio)] + \
-                [(extrapolated, k) for k in opt.viscous_ratios if k < ratio]
-            for predictor, ratio in tries:
+            starts = [None] if rate is None else [self.committed.u + dt * rate, None]
+            for predictor in starts:
                 trial, residuals, reason = self._newton(stage, system, u_start, t + dt, predictor,
                                                         ratio)
                 if trial is not None:
                     break
                 attempts.append({"t": t + dt, "dt": dt, "reason": reason, "residuals": residuals,
-                                 "start": "committed" if predictor is None else "extrapolated",
-                                 "viscous_ratio": ratio})
+                                 "start": "committed" if predictor is None else "extrapolated"})
             if trial is None:
                 if dt <= stage.dt_min * (1 + 1e-9):
                     raise ConvergenceError(self._failure_message(stage, attempts, cuts),

@@ -30,9 +30,7 @@ rate-independent one as τ → 0 at first order (the overstress is τ C ε̇_vp)
 scripts report the result at several τ.
 
 Time is the stage parameter t times :attr:`contfab.fem.solver.Stage.duration`; the solver
-applies :func:`blend` with k = Δt/τ (``NewtonOptions.relaxation_time``) or, as a fallback for
-a step the inviscid iteration cannot converge, with a prescribed k
-(``NewtonOptions.viscous_ratios``; :mod:`contfab.fem.solver`).
+applies :func:`blend` with k = Δt/τ (``NewtonOptions.relaxation_time``).
 """
 from __future__ import annotations
 
