@@ -415,7 +415,8 @@ class Solver:
                 predictor: np.ndarray | None, ratio: float = math.inf):
         """One step to stage parameter ``t``: (trial state or None, residual history, reason).
 
-        ``ratio`` k = Δt/τ < inf makes it a Duvaut–Lions step (:func:`contfab.fem.viscous.blend`).
+        ``ratio`` k = Δt/τ < inf makes it a Duvaut–Lions step
+        (:func:`contfab.fem.viscous.blend`).
 
         ``predictor`` (the extrapolated displacement, or None) is the first iterate, with
         the constrained DOFs set to ū(t); without it the first correction, from the

@@ -290,9 +290,9 @@ def run(args) -> CaseResult:
                     if math.isfinite(r["reference"]) and psi == phi:
                         figures.append(Figure(label, r["computed"], r["reference"], source))
                     elif psi != phi and args.factor == "Nq":
-                        figures.append(Figure(label, r["computed"], prandtl_nq(davis_angle(phi, psi)),
-                                              "Prandtl-Reissner at the Davis-reduced angle (a "
-                                              "rough bound)"))
+                        davis = prandtl_nq(davis_angle(phi, psi))
+                        figures.append(Figure(label, r["computed"], davis, "Prandtl-Reissner at "
+                                              "the Davis-reduced angle (a rough bound)"))
                     else:
                         unreferenced.append(Figure(label, r["computed"], math.nan,
                                                    NO_REFERENCE))
