@@ -85,6 +85,10 @@ def test_band_references_are_roscoe_arthur_coulomb_of_the_peak_state_never_the_a
 
 @pytest.mark.parametrize("argv, message", [
     (["case", "strip_footing", "--level", "99", "--out", "none"], "mesh level = 99 is outside"),
+    (["case", "strip_footing", "--settlement", "2", "--out", "none"],
+     "settlement = 2 B is outside the accepted range"),
+    (["case", "strip_footing", "--element", "P2", "--relaxation-time", "-1", "--out", "none"],
+     "relaxation_time = -1.0 is outside the accepted range"),
     (["case", "retaining_wall", "--phi", "95", "--out", "none"], "phi_deg = 95 is outside"),
     (["case", "biaxial_shear_band", "--dense", "0.5", "--out", "none"], "dense = 0.5"),
     (["case", "simple_shear_reversal", "--dgamma", "0.5", "--out", "none"],
