@@ -109,8 +109,34 @@ def test_biaxial_band_angle_within_5_degrees_of_roscoe_coulomb_and_softening():
     assert result.notes["peak"] == pytest.approx((1 + s) / (1 - s), rel=0.02)
 
 
+def test_band_references_are_roscoe_arthur_coulomb_of_the_peak_state_never_the_angle(
+        monkeypatch):
+    """The band angle is printed against Roscoe 45 + ψ/2, Arthur 45 + (φ + ψ)/4 and Coulomb
+    45 + φ/2 of the peak state, each separately; the headline is Arthur's. An angle inside
+    the range must not become its own reference (that made the headline error 0 %)."""
+    from contfab.scenes.case import build_parser, load_case
+
+    biax = load_case("biaxial_shear_band")
+    run = {"peak": 3.0, "peak_strain": 0.01, "end": 2.5, "angle": 53.0, "phi0": 30.0,
+           "psi0": 10.0, "band_c_min": 0.8, "dofs": 1, "wall_s": 0.0, "steps": 1,
+           "median_newton": 1.0, "files": []}
+    monkeypatch.setattr(biax, "solve", lambda *a, **k: run)
+    args = build_parser(biax, "x").parse_args([])
+    args.out = None
+    result = biax.run(args)
+    refs = {f.source.split(" ")[0]: f.reference for f in result.figures}
+    assert refs == {"Arthur": 55.0, "Roscoe": 50.0, "Coulomb": 60.0}
+    assert result.figures[0].source.startswith("Arthur")
+    assert all(f.computed == 53.0 != f.reference for f in result.figures)
+    assert result.notes["in_roscoe_coulomb"] is True
+
+
 @pytest.mark.parametrize("argv, message", [
     (["case", "strip_footing", "--level", "99", "--out", "none"], "mesh level = 99 is outside"),
+    (["case", "strip_footing", "--settlement", "2", "--out", "none"],
+     "settlement = 2 B is outside the accepted range"),
+    (["case", "strip_footing", "--element", "P2", "--relaxation-time", "-1", "--out", "none"],
+     "relaxation_time = -1.0 is outside the accepted range"),
     (["case", "retaining_wall", "--phi", "95", "--out", "none"], "phi_deg = 95 is outside"),
     (["case", "biaxial_shear_band", "--dense", "0.5", "--out", "none"], "dense = 0.5"),
     (["case", "simple_shear_reversal", "--dgamma", "0.5", "--out", "none"],
@@ -232,7 +258,8 @@ def test_a_failed_study_run_is_recorded_and_the_others_still_run(monkeypatch):
         if psi == 10.0:
             raise _failure(12.5)
         return {"computed": 14.0 + psi / 10, "reference": case.reference_factor("Ngamma", phi),
-                "peak": 15.0, "plateau_drift": 0.0, "dofs": 1, "wall_s": 0.0, "steps": 1,
+                "peak": 15.0, "plateau_drift": 0.0, "settlement_over_B": 0.1, "dofs": 1,
+                "wall_s": 0.0, "steps": 1,
                 "median_newton": 1.0, "residuals": [[1e-9]], "files": []}
 
     monkeypatch.setattr(case, "solve", fake)

@@ -49,6 +49,7 @@ different sequences of elastic/plastic point sets, and one converging is enough.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from typing import Iterator, Protocol
 
@@ -57,6 +58,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from contfab.fem.assembly import Discretization
+from contfab.fem.viscous import blend, elastic_stiffness
 from contfab.models.cone import STATUS_APEX
 
 
@@ -116,7 +118,8 @@ class Stage:
     stage's start.
     ``reset_displacement`` zeroes u after the stage but keeps stress and
     state (a geostatic stage: the initial stress is in equilibrium, settlements
-    count from there).
+    count from there). ``duration`` is the time the stage takes (t runs over it
+    uniformly): the unit of ``NewtonOptions.relaxation_time``.
     """
 
     name: str
@@ -130,6 +133,7 @@ class Stage:
     reset_displacement: bool = False
     ties: np.ndarray | None = None      # (k, 2) free DOF pairs (follower, leader)
     tie_factors: np.ndarray | None = None   # (k,) u_follower = factor u_leader (default 1)
+    duration: float = 1.0
 
     def __post_init__(self):
         if len(self.fixed_dofs) != len(self.increment):
@@ -150,6 +154,9 @@ class Stage:
             if self.tie_factors is not None and np.shape(self.tie_factors) != (len(ties),):
                 raise ValueError(f"stage {self.name!r}: {len(ties)} ties but tie_factors of "
                                  f"shape {np.shape(self.tie_factors)}")
+        if not (math.isfinite(self.duration) and self.duration > 0):
+            raise ValueError(f"stage {self.name!r}: duration = {self.duration!r} is outside the "
+                             "accepted range (0, inf)")
         if not 0 < self.dt_min <= self.dt0 <= 1 or not self.dt0 <= self.dt_max <= 1:
             raise ValueError(f"stage {self.name!r}: need 0 < dt_min <= dt0 <= dt_max <= 1, "
                              f"got dt_min={self.dt_min}, dt0={self.dt0}, dt_max={self.dt_max}")
@@ -171,6 +178,8 @@ class NewtonOptions:
     ``line_search`` halvings of a correction are tried when it does not reduce the free
     residual (apex/face switching made plain Newton cycle on the N_γ footing);
     ``spin_step`` is the difference step of the spin tangent (0: off).
+    ``relaxation_time`` τ (in the stages' ``duration`` unit) makes every step a Duvaut–Lions
+    viscoplastic step with k = Δt/τ (:mod:`contfab.fem.viscous`).
     """
 
     tol: float = 1e-8
@@ -183,6 +192,7 @@ class NewtonOptions:
     spin_step: float = 1e-7
     line_search: int = 4
     extrapolate: bool = True
+    relaxation_time: float | None = None
 
     def __post_init__(self):
         if not 0 < self.tol <= self.tol_stall < 1:
@@ -194,6 +204,10 @@ class NewtonOptions:
             raise ValueError(f"need grow >= 1 and 0 < cut < 1, got {self.grow}, {self.cut}")
         if self.line_search < 0:
             raise ValueError(f"line_search = {self.line_search} must be >= 0")
+        if self.relaxation_time is not None and not (math.isfinite(self.relaxation_time)
+                                                     and self.relaxation_time > 0):
+            raise ValueError(f"relaxation_time = {self.relaxation_time!r} is outside the "
+                             "accepted range (0, inf)")
         if not 0 <= self.spin_step < 1e-3:
             raise ValueError(f"spin_step = {self.spin_step} must lie in [0, 1e-3)")
 
@@ -212,6 +226,7 @@ class StepRecord:
     residuals: list[float]
     cuts: int = 0
     extrapolated: bool = False
+    viscous_ratio: float = math.inf
 
     tol: float = 1e-8
 
@@ -321,6 +336,13 @@ class Solver:
         self.disc = disc
         self.material = material
         self.options = options
+        self._ratio = math.inf
+        self._elastic = None
+        if options.relaxation_time is not None:
+            if getattr(material, "spin_tangent", None) is None:
+                raise ValueError("a viscous step needs the material's exact spin tangent "
+                                 "(material.spin_tangent)")
+            self._elastic = elastic_stiffness(material)
         zero = np.zeros((n, 3))
         res = material.update(stress0, state0, zero, np.zeros(n))
         if np.any(res.status < 0):
@@ -354,11 +376,15 @@ class Solver:
                                  f"{system.fixed.shape} constrained DOFs")
         self.stage_start = u_start
         attempts, cuts, rate = [], 0, None
+        opt = self.options
         while t < 1.0 - 1e-12:
             dt = min(dt, 1.0 - t)
+            ratio = math.inf if opt.relaxation_time is None else \
+                dt * stage.duration / opt.relaxation_time
             starts = [None] if rate is None else [self.committed.u + dt * rate, None]
             for predictor in starts:
-                trial, residuals, reason = self._newton(stage, system, u_start, t + dt, predictor)
+                trial, residuals, reason = self._newton(stage, system, u_start, t + dt, predictor,
+                                                        ratio)
                 if trial is not None:
                     break
                 attempts.append({"t": t + dt, "dt": dt, "reason": reason, "residuals": residuals,
@@ -375,7 +401,8 @@ class Solver:
             self.committed = trial
             t += dt
             record = StepRecord(stage.name, t, dt, residuals, cuts=cuts,
-                                extrapolated=predictor is not None, tol=self.options.tol)
+                                extrapolated=predictor is not None, tol=self.options.tol,
+                                viscous_ratio=ratio)
             self.records.append(record)
             attempts, cuts = [], 0
             yield record
@@ -385,14 +412,18 @@ class Solver:
             self.committed = replace(self.committed, u=np.zeros_like(self.committed.u))
 
     def _newton(self, stage: Stage, system: ConstrainedSystem, u_start: np.ndarray, t: float,
-                predictor: np.ndarray | None):
+                predictor: np.ndarray | None, ratio: float = math.inf):
         """One step to stage parameter ``t``: (trial state or None, residual history, reason).
+
+        ``ratio`` k = Δt/τ < inf makes it a Duvaut–Lions step
+        (:func:`contfab.fem.viscous.blend`).
 
         ``predictor`` (the extrapolated displacement, or None) is the first iterate, with
         the constrained DOFs set to ū(t); without it the first correction, from the
         committed state and tangent, carries the prescribed increment.
         """
         c, opt, disc = self.committed, self.options, self.disc
+        self._ratio = ratio
         f_ext = stage.f_dead if stage.f_ramp is None else stage.f_dead + t * stage.f_ramp
         target = u_start + t * stage.increment
         residuals: list[float] = []
@@ -456,6 +487,8 @@ class Solver:
         None if the update fails at some point."""
         dstrain, dspin = self.disc.strain(u - c.u)
         res = self.material.update(c.stress, c.state, dstrain, dspin)
+        if self._ratio < math.inf:
+            blend(res, c.stress, c.state, dstrain, dspin, self._elastic, self._ratio)
         if np.any(res.status < 0):
             return None
         r = self.disc.internal_force(res.stress) - f_ext

@@ -14,8 +14,10 @@ deformation localizes. The band angle θ to the minor principal stress direction
 horizontal) is measured from the principal axis of the elements carrying the
 plastic shear strain of the last tenth of the push (weighted by it), and compared
 with Coulomb π/4 + φ/2, Roscoe π/4 + ψ/2 and Arthur π/4 + (φ + ψ)/4 at the peak state
-(φ = φ(c0), ψ = ψ(c0)). The headline figure is θ against the nearest end of the
-Roscoe–Coulomb range (reference = the angle itself inside the range).
+(φ = φ(c0), ψ = ψ(c0)), each a separate figure. The headline figure is θ against
+Arthur's angle, the one stated reference (the middle of the Roscoe–Coulomb range, where
+band angles in sands are observed); the notes say whether θ lies in the Roscoe–Coulomb
+range (``in_roscoe_coulomb``).
 
 Softening without an internal length makes the post-peak branch mesh dependent (the
 band is as thin as the elements allow): ``--study`` runs mesh levels 1..3 and λ, 10λ,
@@ -264,12 +266,15 @@ def run(args) -> CaseResult:
     coulomb = 45 + r["phi0"] / 2
     roscoe = 45 + r["psi0"] / 2
     arthur = 45 + (r["phi0"] + r["psi0"]) / 4
-    nearest = min(max(r["angle"], roscoe), coulomb)
-    figures = [Figure("band angle to the horizontal [deg] vs the Roscoe-Coulomb range",
-                      r["angle"], nearest, f"Roscoe {roscoe:.1f}, Coulomb {coulomb:.1f}"),
-               Figure("band angle vs Arthur [deg]", r["angle"], arthur, "Arthur")]
+    figures = [Figure("band angle to the horizontal [deg] vs Arthur", r["angle"], arthur,
+                      "Arthur et al. (1977): 45 + (phi + psi)/4"),
+               Figure("band angle vs Roscoe [deg]", r["angle"], roscoe,
+                      "Roscoe (1970): 45 + psi/2"),
+               Figure("band angle vs Coulomb [deg]", r["angle"], coulomb,
+                      "Coulomb (1773): 45 + phi/2")]
     notes = {k: r[k] for k in ("peak", "peak_strain", "end", "phi0", "psi0", "band_c_min",
                                "dofs", "wall_s", "steps", "median_newton")}
+    notes["in_roscoe_coulomb"] = roscoe <= r["angle"] <= coulomb
     notes["softening"] = r["end"] / r["peak"] - 1.0
     if auto is not None:
         notes["auto"] = auto

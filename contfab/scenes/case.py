@@ -122,6 +122,9 @@ def print_result(result: CaseResult, as_json: bool) -> None:
         print(json.dumps(_finite(result.as_dict()), default=_plain, allow_nan=False))
         return
     for f in result.figures:
+        if not math.isfinite(f.reference):
+            print(f"{f.name}: computed {f.computed:.4g}; {f.source}")
+            continue
         print(f"{f.name}: computed {f.computed:.4g}, reference {f.reference:.4g} ({f.source}), "
               f"error {100 * f.relative_error:+.2f}%")
     for k, v in result.notes.items():

@@ -16,7 +16,11 @@ reaction force on the footing (of the half model). Model tier 0 (constant φ, ψ
   N_γ = q_u/(½ γ B) against the exact method-of-characteristics values for a rough
   footing and associated flow of Martin (2005), "Exact bearing capacity calculations
   using the method of characteristics", Proc. 11th IACMAG, Turin, vol. 4, 441-450:
-  N_γ = 14.75 at φ = 30°. With ψ < φ the collapse load drops (no exact value; reported).
+  N_γ = 14.75 at φ = 30°. With ψ < φ the collapse load drops: no exact value exists; the
+  factor is printed with "no published reference" (N_γ), or against Prandtl–Reissner at
+  Davis's reduced angle φ* (N_q, :func:`davis_angle`: a rough bound), and φ* is noted.
+  ``--relaxation-time`` makes the material Duvaut–Lions viscoplastic
+  (:mod:`contfab.fem.viscous`; docs/fem_validation.md measures it on non-associated N_γ).
 
 The computed factor is the bearing pressure at the end of the push; the push is a
 multiple of the elastic settlement scale N·b/λ, and the plateau is checked (the load
@@ -51,6 +55,7 @@ PUSH_DT_MIN = 1e-6
 points flip between elastic and plastic from one Newton iterate to the next, leaving a
 residual ∝ the step (2e-7 at 1e-6 of the push, 3e-5 at 1e-4; docs/fem_validation.md §5),
 so these steps need to be small; the associated runs never get near it."""
+NO_REFERENCE = "no published reference for these angles and this flow rule"
 MARTIN_2005_NGAMMA_ROUGH = {30.0: 14.75}
 """Exact N_γ, rough strip footing, associated flow (Martin 2005, method of characteristics)."""
 
@@ -61,6 +66,15 @@ def reference_factor(factor: str, phi_deg: float) -> float:
     if factor == "Nq":
         return prandtl_nq(phi_deg)
     return MARTIN_2005_NGAMMA_ROUGH.get(phi_deg, math.nan)
+
+
+def davis_angle(phi_deg: float, psi_deg: float) -> float:
+    """Davis's (1968) reduced friction angle of a non-associated material [deg]:
+    tan φ* = sin φ cos ψ / (1 - sin φ sin ψ) (φ* = φ for ψ = φ); the associated solution at
+    φ* is a rough (usually low) estimate of the non-associated collapse load."""
+    phi, psi = math.radians(phi_deg), math.radians(psi_deg)
+    return math.degrees(math.atan(math.sin(phi) * math.cos(psi)
+                                  / (1.0 - math.sin(phi) * math.sin(psi))))
 
 
 def prandtl_nq(phi_deg: float) -> float:
@@ -115,13 +129,19 @@ def footing_mesh(phi_deg: float, level: int, kind: str = "tri", factor: str = "N
 
 def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int, params,
           out: Path | None, progress: bool, push: float = 15.0,
-          apex_stiffness: float = 1e-9, dt_max: float = 0.05) -> dict:
+          apex_stiffness: float = 1e-9, dt_max: float = 0.05,
+          settlement: float | None = None, relaxation_time: float | None = None) -> dict:
     """One footing analysis; returns the factor, its curve summary, Newton figures, files.
 
-    ``push`` is the footing settlement in units of the elastic scale N·b/λ; ``dt_max`` the
-    largest load step, as a fraction of the push (``contfab tradeoff fem_footing_nq``
-    measures its effect).
+    ``push`` is the footing settlement in units of the elastic scale N·b/λ, or
+    ``settlement`` the final settlement in units of B = 2b; ``dt_max`` the largest load
+    step, as a fraction of the push (``contfab tradeoff fem_footing_nq`` measures its
+    effect). ``relaxation_time`` τ makes the material Duvaut–Lions viscoplastic
+    (:mod:`contfab.fem.viscous`), τ in units of the settlement over B (the push runs at unit
+    settlement rate).
     """
+    if settlement is not None and not 0.0 < settlement <= 1.0:
+        raise ParamError(f"settlement = {settlement:g} B is outside the accepted range (0, 1]")
     stress_scale = 1.0     # q (N_q) or γ b (N_γ): the scene's stress unit
     params = params.with_tier(0).replace("tier0", phi_deg=phi_deg, psi_deg=psi_deg) \
         .replace("regularization", p_ref=stress_scale)
@@ -146,7 +166,8 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
         f_dead += loads.body_force(disc, by=-gamma)
         norm = gamma * B_HALF**2                # N_γ = q_u / (½ γ B) = Q / (γ b²)
     reference = reference_factor(factor, phi_deg)
-    solver = Solver(disc, material, stress0, material.initial_state(n), NewtonOptions())
+    solver = Solver(disc, material, stress0, material.initial_state(n),
+                    NewtonOptions(relaxation_time=relaxation_time))
     dofs = {f"{s}_{c}": loads.boundary_dofs(disc, s, c)
             for s, c in (("left", "x"), ("right", "x"), ("bottom", "x"), ("bottom", "y"),
                          ("footing", "x"), ("footing", "y"))}
@@ -159,10 +180,10 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
     footing = np.concatenate((dofs["footing_x"], dofs["footing_y"]))
     fixed = np.unique(np.concatenate((supports, footing)))
     scale = reference if math.isfinite(reference) else prandtl_nq(phi_deg)
-    delta = push * scale * B_HALF / lam
+    delta = push * scale * B_HALF / lam if settlement is None else settlement * 2 * B_HALF
     increment = np.where(np.isin(fixed, dofs["footing_y"]), -delta, 0.0)
     stages.append(Stage("push", fixed, increment, f_dead, dt0=min(0.02, dt_max), dt_max=dt_max,
-                        dt_min=PUSH_DT_MIN))
+                        dt_min=PUSH_DT_MIN, duration=delta / (2 * B_HALF)))
 
     def measure(s: Solver) -> dict:
         u = s.committed.u[dofs["footing_y"]]
@@ -183,6 +204,7 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
     tail = values[result.column("t") >= 0.8 * result.column("t")[-1]]
     return {"phi": phi_deg, "psi": psi_deg, "reference": reference, "computed": float(values[-1]),
             "peak": float(values.max()), "plateau_drift": float(tail[-1] / tail[0] - 1.0),
+            "settlement_over_B": float(result.column("settlement")[-1] / 2),
             "dofs": disc.ndofs, "element": element, "level": level, "wall_s": wall,
             "steps": len(result.iterations),
             "median_newton": float(np.median(result.iterations)),
@@ -205,6 +227,12 @@ def add_arguments(p) -> None:
     p.add_argument("--lam", type=float, default=None, help="override the regularization lambda")
     p.add_argument("--apex-stiffness", type=float, default=1e-9,
                    help="Newton-matrix stiffness fraction at apex points (0: off)")
+    p.add_argument("--settlement", type=float, default=None,
+                   help="push to this settlement over B (default: 15 elastic settlement scales "
+                        "N b / lambda, about 0.1 B for N_gamma at phi = 30)")
+    p.add_argument("--relaxation-time", type=float, default=None,
+                   help="Duvaut-Lions viscoplastic material with this relaxation time, in "
+                        "units of settlement over B (default: rate-independent)")
 
 
 TABLE_COLUMNS = ("factor", "phi", "psi", "element", "level", "dofs", "computed", "reference",
@@ -228,7 +256,7 @@ def run(args) -> CaseResult:
     phis = args.phi or ([30.0] if args.factor == "Ngamma" else [params.tier0.phi_deg])
     symbol = "N_q" if args.factor == "Nq" else "N_gamma"
     source = "Prandtl-Reissner" if args.factor == "Nq" else "Martin (2005)"
-    figures, notes, files, rows = [], {}, [], []
+    figures, unreferenced, notes, files, rows = [], [], {}, [], []
     for phi in phis:
         for element in args.element:
             for level in args.level:
@@ -243,10 +271,13 @@ def run(args) -> CaseResult:
                     t0 = time.perf_counter()
                     try:
                         r = solve(phi, psi, args.factor, element, level, params, args.out,
-                                  not args.quiet, apex_stiffness=args.apex_stiffness)
+                                  not args.quiet, apex_stiffness=args.apex_stiffness,
+                                  settlement=args.settlement,
+                                  relaxation_time=args.relaxation_time)
                     except ConvergenceError as exc:
                         if headline:
                             raise
+                        failure = exc
                         notes[label] = failure_note(exc, args.factor, "settlement")
                         notes[label]["wall_s"] = time.perf_counter() - t0
                         rows.append([args.factor, phi, psi, element, level, math.nan, math.nan,
@@ -258,9 +289,19 @@ def run(args) -> CaseResult:
                     drop = r["computed"] / associated - 1.0 if associated else math.nan
                     if math.isfinite(r["reference"]) and psi == phi:
                         figures.append(Figure(label, r["computed"], r["reference"], source))
-                    notes[label] = {k: r[k] for k in ("computed", "peak", "plateau_drift", "dofs",
-                                                      "wall_s", "steps", "median_newton")}
+                    elif psi != phi and args.factor == "Nq":
+                        davis = prandtl_nq(davis_angle(phi, psi))
+                        figures.append(Figure(label, r["computed"], davis, "Prandtl-Reissner at "
+                                              "the Davis-reduced angle (a rough bound)"))
+                    else:
+                        unreferenced.append(Figure(label, r["computed"], math.nan,
+                                                   NO_REFERENCE))
+                    notes[label] = {k: r[k] for k in ("computed", "peak", "plateau_drift",
+                                                      "settlement_over_B", "dofs", "wall_s",
+                                                      "steps", "median_newton")}
                     notes[label]["last_step_residuals"] = r["residuals"][-1]
+                    if psi != phi:
+                        notes[label]["davis_phi"] = davis_angle(phi, psi)
                     if psi != phi and associated:
                         notes[label]["drop_vs_associated"] = drop
                     rows.append([args.factor, phi, psi, element, level, r["dofs"], r["computed"],
@@ -268,10 +309,9 @@ def run(args) -> CaseResult:
                                  r["plateau_drift"], r["steps"], r["median_newton"], r["wall_s"],
                                  "converged"])
                     files += r["files"]
-    if not figures:
-        raise ParamError("no reference for these angles and flow rules: the references are "
-                         "for associated flow (psi = phi), and N_gamma's exact value is known "
-                         "at phi = 30 only")
+    figures += unreferenced
+    if not figures:     # every run failed: the last failure is the error
+        raise failure
     if len(rows) > 1 and args.out is not None:
         table = Path(args.out) / f"strip_footing_{args.factor}_table.csv"
         files.append(write_csv(table, TABLE_COLUMNS, rows))
