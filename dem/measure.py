@@ -16,6 +16,22 @@ saw).
 * Volume-weighted fabric of seed 002 eq. (3): <F>_V = (1/V) Σ_p π r_p² Σ_{c∈p} n⊗n.
 * Sliding fraction: contacts with |ft| >= (1 - 1e-9) μ fn (all contacts when μ = 0).
 * Strong / weak network: contacts with fn above / not above the mean normal force.
+* Force anisotropy (Rothenburg & Bathurst 1989): the mean contact forces per direction θ
+  of the normal n = (cos θ, sin θ), in their second-order Fourier form,
+
+      f̄n(θ) = f0 [1 + a_n cos 2(θ - θn)],      f̄t(θ) = -f0 a_t sin 2(θ - θt),
+
+  fitted by least squares over the contacts (:func:`force_anisotropy`; exact whenever the
+  forces follow that form, whatever the distribution of the normals). They are the
+  components of the force on j, -f = fn n + (-ft) t, with t = (-sin θ, cos θ), fn = -f·n
+  (> 0 in compression) and ft = f·t as in :class:`Contacts`. a_n, a_t >= 0; θn, θt in
+  (-π/2, π/2] like θp: θn is the direction of the largest normal forces. To first order in the anisotropies the stress
+  deviator, with the compressive major principal direction θσ, is
+
+      (R/P) (cos 2θσ, sin 2θσ) ≈ ½ Σ_k a_k (cos 2θk, sin 2θk),   k ∈ {c, n, t},
+
+  a_c = B/A and θc = θp (the contact density p(θ)/(πA) = (1/π)[1 + a_c cos 2(θ - θp)]);
+  coaxial, R/P ≈ (a_c + a_n + a_t)/2.
 * Energies: elastic Σ ½ kn δ² + ½ kt ξt² + ½ kr ξr² (kr = kt r_eff²), kinetic
   Σ ½ m v'² + ½ I ω², and the accumulators (external work V σ:L dt, damping, friction
   and rolling dissipation); balance error = (elastic + kinetic + dissipated - work) minus
@@ -95,6 +111,30 @@ def rattler_mask(n: int, i: np.ndarray, j: np.ndarray, min_contacts: int) -> np.
             return ratt
         ratt |= new
         keep &= ~(ratt[i] | ratt[j])
+
+
+def force_anisotropy(normals: np.ndarray, fn: np.ndarray, ft: np.ndarray) -> dict:
+    """f0, a_n, θn, a_t, θt of the module doc: least squares of fn and -ft on
+    (1, cos 2θ, sin 2θ) over the contacts.
+
+    An assembly without compressive forces (fewer than 3 contacts or f0 <= 0: a gas)
+    has no force anisotropy and gets zeros.
+    """
+    out = {"f0": 0.0, "a_n": 0.0, "theta_n": 0.0, "a_t": 0.0, "theta_t": 0.0}
+    if fn.shape[0] < 3:
+        return out
+    nx, ny = normals[:, 0], normals[:, 1]
+    # cos 2θ, sin 2θ of the unit normals
+    design = np.stack([np.ones_like(nx), nx * nx - ny * ny, 2.0 * nx * ny], axis=1)
+    (f0, pn, qn), (_, pt, qt) = np.linalg.lstsq(design, np.stack([fn, -ft], axis=1),
+                                                 rcond=None)[0].T
+    if not f0 > 0.0:
+        return out
+    # f0 a_n cos 2(θ - θn) = pn cos 2θ + qn sin 2θ;  -f0 a_t sin 2(θ - θt) = pt cos 2θ + qt sin 2θ
+    out.update(f0=float(f0), a_n=float(math.hypot(pn, qn) / f0),
+               theta_n=float(0.5 * math.atan2(qn, pn)),
+               a_t=float(math.hypot(pt, qt) / f0), theta_t=float(0.5 * math.atan2(pt, -qt)))
+    return out
 
 
 def fabric_tensor(normals: np.ndarray, n_discs: int) -> np.ndarray:
@@ -237,6 +277,7 @@ def measure(state: State, law: ContactLaw, strain_rate: np.ndarray | None = None
            "B_strong": float(fabric_polar(bc_s, bs_s)[0]), "A_strong": float(a_s),
            "B_weak": float(fabric_polar(bc_w, bs_w)[0]), "A_weak": float(a_w),
            "kappa": law.kn / p if p > 0 else math.inf}
+    out.update(force_anisotropy(c.n, c.fn, c.ft))
     out.update(energies(state, law, c))
     if strain_rate is not None:
         dxx, dyy, dxy = strain_rate

@@ -14,7 +14,9 @@ progress of a run (stage, step in stage, rows so far) is a small :class:`PathRun
 object, stored in checkpoints with the state, so a resumed run takes exactly the same
 steps as an uninterrupted one.
 
-Rows are :func:`dem.history.history_row` plus the DEM-only columns :data:`DEM_COLUMNS`.
+Rows are :func:`dem.history.history_row` plus the DEM-only columns :data:`DEM_COLUMNS`,
+the first of them the force anisotropy beside the fabric (a_n, θn, a_t, θt of
+:func:`dem.measure.force_anisotropy`, angles in radians like θp).
 """
 from __future__ import annotations
 
@@ -33,7 +35,8 @@ from dem.state import EXX, EXY, EYY, TAU, TIME, State
 
 CHECKS_PER_OUTPUT = 10
 
-DEM_COLUMNS = ("step", "time", "I", "kappa", "z_no_rattlers", "rattler_fraction", "trF_V",
+DEM_COLUMNS = ("a_n", "theta_n", "a_t", "theta_t",
+               "step", "time", "I", "kappa", "z_no_rattlers", "rattler_fraction", "trF_V",
                "sliding_fraction", "strong_fraction", "P_strong_share", "A_strong", "B_strong",
                "A_weak", "B_weak", "E_elastic", "E_kinetic", "W_external", "D_damping",
                "D_friction", "D_rolling", "energy_error", "localization", "admissibility")

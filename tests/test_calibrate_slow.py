@@ -1,14 +1,72 @@
 """Slow: regenerate the shipped default parameters with `contfab calibrate` at the settings
-recorded in their provenance (the DEM campaign and the fit budget) and check that every
-fitted parameter agrees with the shipped one within the seed scatter recorded there."""
+recorded in their provenance (the DEM campaign and the fit budget) and check that the
+regenerated model agrees with the shipped one within the DEM's seed scatter.
+
+Two estimates fitted to K-seed mean DEM curves each carry the standard error (SE) of such
+a mean; their difference has sd √2 SE, and the checks allow 3 sd of it:
+
+* **identified parameters**: |new - shipped| <= 3√2 SE with SE the parameter's stderr
+  recorded in the provenance (from the seed scatter of single-seed fits). A parameter
+  whose bound exceeds its own magnitude (3√2 SE >= |value|) is not identified by the
+  campaign — the phases a3, b3 of the plane anisotropy (SE 22° and 49°: a bound of ±93°
+  and ±208° on an angle of the circle (-180°, 180°], which no value can fail), and with
+  them a2, b0..b2 — and is checked through what it predicts instead:
+* **predictions**: on every fitted path, the two models' means of R/P, ε_v, c, A, B and
+  θp over the window the fit weighs (:func:`contfab.calibration.curves.errors`: the last
+  30 % of the last stage) differ by <= 3√2 SE, SE = the sd over the K seeds of the DEM's
+  window mean / √K. Point by point the DEM curves scatter far more than their window means: on
+  a small campaign (N = 100, 3 seeds, I = 1e-2; loose biaxial and simple-shear reversal)
+  a bound from the per-point SE let a3 + 180° (the anisotropy's sign flipped) pass, the
+  window means reject it (ΔR/P 0.070 against a bound of 0.038), and a3 + 90° and
+  φ* + 3° alike, while the identical model gives 0.
+"""
 import math
 import tomllib
 
+import numpy as np
 import pytest
 
-from contfab.calibration.calibrate import calibrate
-from contfab.calibration.campaign import CampaignSettings
+from contfab.calibration.calibrate import calibrate, load_targets
+from contfab.calibration.campaign import CampaignSettings, Layout
+from contfab.calibration.curves import QUANTITIES, difference, errors
+from contfab.calibration.fitting import run_model
 from contfab.params import default_params, default_params_path, load_params
+
+SIGMAS = 3.0
+"""Allowed difference of two K-seed estimates, in standard deviations of that difference."""
+
+
+def identified(value: float, stderr: float) -> bool:
+    """The campaign determines a parameter when its bound is smaller than its magnitude."""
+    return SIGMAS * math.sqrt(2.0) * stderr < abs(value)
+
+
+def parameter_gaps(fitted: dict, shipped, new) -> list[tuple[str, float, float]]:
+    """(key, |new - shipped|, bound) of every identified fitted parameter."""
+    gaps = []
+    for key, rec in fitted.items():
+        if identified(rec["value"], rec["stderr"]):
+            section, field = key.split(".")
+            a, b = (getattr(p.sections[section], field) for p in (shipped, new))
+            gaps.append((key, abs(b - a), SIGMAS * math.sqrt(2.0) * rec["stderr"]
+                         + 1e-9 * max(1.0, abs(a))))
+    return gaps
+
+
+def prediction_gaps(targets, shipped, new, seeds: int) -> list[tuple[str, str, float, float]]:
+    """(target, quantity, |new - shipped|, bound) of the two models' window means over
+    the last part of each target's path (:func:`contfab.calibration.curves.errors`: the
+    steady part the fit is made to; θp in degrees), the bound from the seed scatter of the
+    DEM's window mean there."""
+    gaps = []
+    for t in targets:
+        a, b = (errors(t.curve, run_model(p, p.tier, t)[0]) for p in (shipped, new))
+        for q in QUANTITIES:
+            gap = difference(q, np.radians(b[q]["residual_model"]), np.radians(a[q]["residual_model"])) \
+                if q == "theta_p" else b[q]["residual_model"] - a[q]["residual_model"]
+            se = a[q]["dem_scatter"] / math.sqrt(seeds)
+            gaps.append((t.name, q, abs(float(gap)), SIGMAS * math.sqrt(2.0) * se))
+    return gaps
 
 
 @pytest.mark.slow
@@ -21,14 +79,11 @@ def test_regenerated_defaults_agree_with_the_shipped_ones_within_the_seed_scatte
                         workers=2, progress=False, max_nfev=prov["max_nfev"])
     new = load_params(written["params"])
     assert new.tier2.to_dict()["fabric_law"] == prov["fabric_law_choice"]
-    checked = 0
-    for fit in ("tier1", prov["fabric_law_choice"]):
-        for key, rec in prov["fitted"][fit].items():
-            section, field = key.split(".")
-            a = getattr(shipped.sections[section], field)
-            b = getattr(new.sections[section], field)
-            # two estimates, each with the standard error of a K-seed mean: 3 sd of their difference
-            tol = 3.0 * math.sqrt(2.0) * rec["stderr"] + 1e-9 * max(1.0, abs(a))
-            assert abs(b - a) <= tol, (key, a, b, rec)
-            checked += 1
-    assert checked >= 4
+    fitted = {**prov["fitted"]["tier1"], **prov["fitted"][prov["fabric_law_choice"]]}
+    gaps = parameter_gaps(fitted, shipped, new)
+    assert len(gaps) >= 4 and {"tier2.a3_deg", "tier2.b3_deg"}.isdisjoint(k for k, *_ in gaps)
+    assert all(gap <= bound for _, gap, bound in gaps), gaps
+    targets = load_targets(campaign, Layout(tmp_path / "calibration"))["fit"]
+    gaps = prediction_gaps(targets, shipped, new, len(campaign.seeds))
+    assert len(gaps) == len(QUANTITIES) * len(targets)
+    assert all(gap <= bound for *_, gap, bound in gaps), [g for g in gaps if g[2] > g[3]]

@@ -1,63 +1,111 @@
-"""The boundary-value cases at their --fast presets: headline numbers with tolerances."""
+"""The boundary-value cases at their --fast presets: each computed value against its
+published reference, evaluated here from constants of this file (never from the case's
+own reference or error)."""
+import contextlib
 import csv
+import io
 import json
 import math
+import os
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from contfab.scenes.case import run_case
 from contfab.cli import main
-from contfab.params import default_params
+from contfab.params import default_params, default_params_path
 
-PHI = default_params().tier0.phi_deg
+SHIPPED = default_params()
+PHI = SHIPPED.tier0.phi_deg
 """The shipped (calibrated) tier-0 friction angle, φ* of the DEM: the cases' default φ."""
 
 
-def test_strip_footing_nq_fast_within_4_percent_and_json(tmp_path, capsys):
-    """N_q (the shipped φ = φ* = 15.66°, associated, P2 level 1) against Prandtl-Reissner."""
-    code = main(["case", "strip_footing", "--fast", "--json", "--quiet", "--out", str(tmp_path)])
+def prandtl_reissner_nq(phi_deg: float) -> float:
+    """N_q = e^{π tan φ} tan²(45° + φ/2) (Prandtl 1920, Reissner 1924)."""
+    phi = math.radians(phi_deg)
+    return math.exp(math.pi * math.tan(phi)) * math.tan(math.pi / 4 + phi / 2) ** 2
+
+
+def rankine_ka(phi_deg: float) -> float:
+    """K_a = (1 - sin φ)/(1 + sin φ) (Rankine 1857); K_p = 1/K_a."""
+    s = math.sin(math.radians(phi_deg))
+    return (1 - s) / (1 + s)
+
+
+def test_the_reference_formulas_match_their_published_tables():
+    """The closed forms above against tabulated values: N_q(30°) = 18.40 (Vesić 1973,
+    "Analysis of ultimate loads of shallow foundations", J. Soil Mech. Found. Div. 99(SM1),
+    table of bearing-capacity factors); K_a(30°) = 1/3 exactly."""
+    assert prandtl_reissner_nq(30.0) == pytest.approx(18.40, abs=0.005)
+    assert rankine_ka(30.0) == pytest.approx(1 / 3, rel=1e-12)
+
+
+@pytest.fixture(scope="module")
+def footing(tmp_path_factory):
+    """One ``contfab case strip_footing --fast --json`` run (the CLI path), shared."""
+    out = tmp_path_factory.mktemp("strip_footing")
+    text = io.StringIO()
+    with contextlib.redirect_stdout(text):
+        code = main(["case", "strip_footing", "--fast", "--json", "--quiet", "--out", str(out)])
+    return code, json.loads(text.getvalue()), out
+
+
+def test_strip_footing_nq_fast_within_4_percent_and_json(footing):
+    """N_q (the shipped φ = φ* = 15.9°, associated, P2 level 1) against Prandtl-Reissner:
+    displacement FE bounds the collapse load from above, within 4 % on this mesh."""
+    code, out, folder = footing
     assert code == 0
-    out = json.loads(capsys.readouterr().out)
-    reference = (math.exp(math.pi * math.tan(math.radians(PHI)))
-                 * math.tan(math.radians(45 + PHI / 2)) ** 2)
-    assert out["reference"] == pytest.approx(reference, rel=1e-12)
-    assert 0 < out["relative_error"] < 0.04            # displacement FE: from above
-    assert out["computed"] == pytest.approx(reference * (1 + out["relative_error"]))
-    names = {p.name for p in tmp_path.iterdir()}
+    reference = prandtl_reissner_nq(PHI)
+    assert 0 < out["computed"] / reference - 1 < 0.04, (out["computed"], reference)
+    names = {p.name for p in folder.iterdir()}
     stem = f"strip_footing_Nq_phi{PHI:g}_psi{PHI:g}"
     assert {f"{stem}.pvd", f"{stem}_curve.csv", f"{stem}_plastic_zone.png"} <= names
     note = out[f"N_q(phi={PHI:g}, psi={PHI:g})"]
     assert abs(note["plateau_drift"]) < 1e-3 and note["median_newton"] < 8
 
 
-def test_newton_converges_quadratically_on_the_collapse_plateau():
+def test_newton_converges_quadratically_on_the_collapse_plateau(footing):
     """The last step of the footing push (at collapse): the error order of the last
     three residuals is >= 1.5 (2 for Newton), ending below the 1e-8 tolerance."""
-    result = run_case("strip_footing", ["--fast", "--quiet", "--out", "none"])
-    r = result.notes[f"N_q(phi={PHI:g}, psi={PHI:g})"]["last_step_residuals"]
+    r = footing[1][f"N_q(phi={PHI:g}, psi={PHI:g})"]["last_step_residuals"]
     assert r[-1] <= 1e-8 and len(r) >= 3
     order = math.log(r[-1] / r[-2]) / math.log(r[-2] / r[-3])
     assert order >= 1.5, r
 
 
 def test_retaining_wall_fast_within_3_percent_of_rankine():
+    """K_a and K_p at the shipped φ against Rankine's closed form; the stiff FE pushes
+    K_a low and K_p high."""
     result = run_case("retaining_wall", ["--fast", "--quiet", "--out", "none"])
-    errors = {f.name: f.relative_error for f in result.figures}
-    assert set(errors) == {f"K_a(phi={PHI:g})", f"K_p(phi={PHI:g})"}
-    assert all(abs(e) < 0.03 for e in errors.values()), errors
-    assert errors[f"K_a(phi={PHI:g})"] < 0 < errors[f"K_p(phi={PHI:g})"]   # stiff FE: K_a low, K_p high
+    computed = {f.name: f.computed for f in result.figures}
+    ka = rankine_ka(PHI)
+    errors = {"active": computed[f"K_a(phi={PHI:g})"] / ka - 1,
+              "passive": computed[f"K_p(phi={PHI:g})"] * ka - 1}
+    assert set(computed) == {f"K_a(phi={PHI:g})", f"K_p(phi={PHI:g})"}
+    assert all(abs(e) < 0.03 for e in errors.values()), (computed, ka)
+    assert errors["active"] < 0 < errors["passive"], errors
 
 
 def test_biaxial_band_angle_within_5_degrees_of_roscoe_coulomb_and_softening():
+    """The band angle lies within 5° of the Roscoe-Coulomb range [45° + ψ0/2, 45° + φ0/2]
+    (Vermeer 1990, "The orientation of shear bands in biaxial tests",
+    Géotechnique 40(2), 223-236), and the peak is the Mohr-Coulomb ratio of φ0:
+    σ1/σ3 = (1 + sin φ0)/(1 - sin φ0) to 2 %. φ0, ψ0 are tier 1's linear laws at the
+    case's default start c0 = c* + 0.03, evaluated here from the shipped parameters."""
+    t1 = SHIPPED.tier1
+    dc = 0.03                                     # the case's default --dense
+    phi0 = min(max(t1.phi_star_deg + t1.dphi_dc_deg * dc, t1.phi_min_deg), t1.phi_max_deg)
+    psi0 = min(t1.dpsi_dc_deg * dc, phi0)
     result = run_case("biaxial_shear_band", ["--fast", "--quiet", "--out", "none"])
-    head = result.figures[0]
-    assert abs(head.computed - head.reference) <= 5.0, head
+    angle = result.figures[0].computed
+    roscoe, coulomb = 45 + psi0 / 2, 45 + phi0 / 2
+    assert roscoe - 5.0 <= angle <= coulomb + 5.0, (angle, roscoe, coulomb)
     assert result.notes["softening"] < -0.05          # the end load is > 5 % below the peak
-    # the peak sits at φ(c0): σ1/σ3 = (1 + sin φ)/(1 - sin φ) to 2 %
-    s = math.sin(math.radians(result.notes["phi0"]))
+    s = math.sin(math.radians(phi0))
     assert result.notes["peak"] == pytest.approx((1 + s) / (1 - s), rel=0.02)
 
 
@@ -82,19 +130,39 @@ def test_case_listing(capsys):
                                   "simple_shear_reversal"))
 
 
+DEM_REFERENCE = Path(__file__).parent.parent / "contfab/scenes/data/simple_shear_reversal_dem"
+
+
+def test_the_simple_shear_reference_is_a_dem_sample_the_calibration_did_not_use():
+    """The stored DEM run has the calibration campaign's settings for this path (the
+    loose sample at κ = 1000) and a seed outside the campaign's: a held-out sample."""
+    run = json.loads(DEM_REFERENCE.with_suffix(".json").read_text())["settings"]
+    with default_params_path().open("rb") as fh:
+        prov = tomllib.load(fh)["provenance"]
+    campaign = prov["campaign"]
+    assert run["seed"] not in campaign["seeds"], (run["seed"], campaign["seeds"])
+    assert {k: run[k] for k in ("n", "mu", "inertial", "radii")} == \
+        {k: campaign[k] for k in ("n", "mu", "inertial", "radii")}
+    spec = prov["runs"]["simple_shear_reversal_loose_k1000"]
+    assert run["kappa"] == spec["kappa"] and run["mu_prep"] in (None, campaign["mu"])
+
+
 def test_simple_shear_reversal_fast_against_the_point_driver_and_the_dem(tmp_path):
-    """The homogeneous layer is the material point (τ/σn to 1e-6); the references are the
+    """The homogeneous layer is the material point (τ/σn to 2e-3); the references are the
     stored DEM curve's values at the stage ends; tier 2's fabric direction flips on
-    reversal as the DEM's does (θp < 0 after γ = +1, > 0 after γ = -1, within 15°)."""
+    reversal as the DEM's does (θp < 0 after γ = +1, > 0 after γ = -1, within 15°); both
+    tiers predict the held-out DEM sample's steady τ/σn (:func:`steady_gaps`)."""
     # its own process (``python cases/NAME.py``): after a failed strip_footing case in the
-    # same process its first tier-1 update hung (not yet understood; see the report)
+    # same process its first tier-1 update hung (not understood)
     root = Path(__file__).parent.parent
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [str(root)] + os.environ.get("PYTHONPATH", "").split(os.pathsep))}  # this checkout's
     done = subprocess.run([sys.executable, str(root / "cases/simple_shear_reversal.py"), "--fast",
                            "--json", "--quiet", "--out", str(tmp_path)],
-                          capture_output=True, text=True, timeout=180)
+                          capture_output=True, text=True, timeout=600, env=env)
     assert done.returncode == 0, done.stderr
     out = json.loads(done.stdout)
-    with open(root / "contfab/scenes/data/simple_shear_reversal_dem.csv") as fh:
+    with open(DEM_REFERENCE.with_suffix(".csv")) as fh:
         rows = list(csv.DictReader(fh))
     forward_end = [r for r in rows if r["stage"] == "0"][-1]
     expected = {"+1": forward_end, "-1": rows[-1]}
@@ -103,14 +171,40 @@ def test_simple_shear_reversal_fast_against_the_point_driver_and_the_dem(tmp_pat
         assert f["reference"] == pytest.approx(float(row["sxy"]) / -float(row["syy"]), rel=1e-9)
     # the layer and the driver integrate the same update on different step grids (the FEM's
     # Δγ = 0.05 after a dt/4 start, the driver's 0.01 output rows); from the DEM's start
-    # (c0 - c* = 0.0023) c evolves, so they differ at O(Δγ): 6.1e-4 measured (1e-13 at c*)
+    # (c0 - c* = -0.0036) c evolves, so they differ at O(Δγ): 1.0e-3 measured (1e-13 at c*)
     assert out["tier1"]["max_dev_vs_point"] < 2e-3
     t2 = out["tier2"]
     assert t2["theta_p_at_gamma_1"] < 0 < t2["theta_p_at_gamma_-1"]
     assert t2["dem_theta_p_at_gamma_1"] < 0 < t2["dem_theta_p_at_gamma_-1"]
     for g in ("1", "-1"):
         assert abs(t2[f"theta_p_at_gamma_{g}"] - t2[f"dem_theta_p_at_gamma_{g}"]) < 15.0
-    assert "simple_shear_reversal_vs_dem.csv" in {p.name for p in tmp_path.iterdir()}
+    with open(tmp_path / "simple_shear_reversal_vs_dem.csv") as fh:
+        table = list(csv.DictReader(fh))
+    gaps = steady_gaps(table)
+    assert all(abs(gap) <= bound for gap, bound in gaps.values()), gaps
+
+
+STEADY = 0.3
+"""The steady part of each stage: its last 30 % (the calibration's residual window)."""
+
+
+def steady_gaps(table: list[dict]) -> dict[tuple[str, int], tuple[float, float]]:
+    """{(tier, stage): (model - DEM, bound)} of the mean τ/σn over the steady part of
+    each stage, on the DEM's rows (``simple_shear_reversal_vs_dem.csv``). The bound is 3
+    standard errors of the DEM sample's own mean there, sd/√rows (the rows, 0.01 of γ
+    apart, taken as independent): the model predicts the held-out sample's steady stress
+    ratio as closely as that sample determines it. Measured: tier 1 +0.0068 / -0.0016
+    against bounds 0.0134 / 0.0121 (forward / reverse), tier 2 +0.0091 / -0.0018."""
+    tau = np.array([float(r["tau"]) for r in table])
+    gaps = {}
+    for stage, (start, end) in enumerate(((0.0, 1.0), (1.0, 3.0))):
+        rows = (tau >= end - STEADY * (end - start)) & (tau <= end + 1e-9)
+        dem = np.array([float(r["dem_ratio"]) for r in table])[rows]
+        for tier in ("tier1", "tier2"):
+            model = np.array([float(r[f"{tier}_ratio"]) for r in table])[rows]
+            gaps[(tier, stage)] = (float(model.mean() - dem.mean()),
+                                   3.0 * float(dem.std(ddof=1)) / math.sqrt(rows.sum()))
+    return gaps
 
 
 def _failure(value: float):

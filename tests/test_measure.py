@@ -90,3 +90,55 @@ def test_localization_index_sees_a_diagonal_band():
     noise, _ = _sheared(lambda s: np.random.default_rng(1).normal(size=s.shape) * 2.0
                         + np.stack([40.0 * s[:, 1], 0.0 * s[:, 1]], 1))
     assert band > 1.0 and noise < 0.5
+
+
+def _harmonic_contacts(theta, f0, a_n, theta_n, a_t, theta_t):
+    """Normals at angles θ and forces on the closed form of Rothenburg & Bathurst (1989):
+    fn = f0 [1 + a_n cos 2(θ - θn)], and the tangential force on j (= -ft of
+    :class:`dem.measure.Contacts`) = -f0 a_t sin 2(θ - θt)."""
+    normals = np.stack([np.cos(theta), np.sin(theta)], axis=1)
+    fn = f0 * (1.0 + a_n * np.cos(2.0 * (theta - theta_n)))
+    ft = f0 * a_t * np.sin(2.0 * (theta - theta_t))
+    return normals, fn, ft
+
+
+def test_force_anisotropy_recovers_the_closed_form_on_anisotropic_normals():
+    from dem.measure import force_anisotropy
+
+    rng = np.random.default_rng(3)
+    # normals crowded around 30°, in both orientations of each pair (θ and θ + π)
+    theta = np.r_[rng.normal(np.pi / 6, 0.6, 500), np.pi + rng.normal(np.pi / 6, 0.6, 500)]
+    got = force_anisotropy(*_harmonic_contacts(theta, 2.5, 0.4, 0.7, 0.15, -1.2))
+    assert math.isclose(got["f0"], 2.5, rel_tol=1e-12)
+    assert math.isclose(got["a_n"], 0.4, rel_tol=1e-12) and math.isclose(got["theta_n"], 0.7)
+    assert math.isclose(got["a_t"], 0.15, rel_tol=1e-12)
+    assert math.isclose(got["theta_t"], -1.2, rel_tol=1e-12)
+
+
+def test_stress_force_fabric_relation_is_exact_for_uniform_normals():
+    """With isotropic normals and harmonic forces the Love–Weber deviator is exactly
+    ½ (a_n d(θn) + a_t d(θt)) P, d(θ) = (cos 2θ, sin 2θ) (Rothenburg & Bathurst 1989)."""
+    from dem.measure import force_anisotropy
+
+    theta = (np.arange(720) + 0.25) * 2 * np.pi / 720
+    normals, fn, ft = _harmonic_contacts(theta, 1.0, 0.3, 0.4, 0.1, 0.9)
+    t = np.stack([-normals[:, 1], normals[:, 0]], axis=1)
+    f_on_i = -fn[:, None] * normals + ft[:, None] * t
+    sigma = np.einsum("ci,cj->ij", f_on_i, 0.9 * normals)       # branch length 0.9, V = 1
+    sigma = 0.5 * (sigma + sigma.T)
+    p = -0.5 * np.trace(sigma)
+    dev = np.array([0.5 * (sigma[0, 0] - sigma[1, 1]), sigma[0, 1]])
+    fa = force_anisotropy(normals, fn, ft)
+    pred = 0.5 * sum(fa[a] * np.array([np.cos(2 * fa[th]), np.sin(2 * fa[th])])
+                     for a, th in (("a_n", "theta_n"), ("a_t", "theta_t")))
+    # compression positive: the compressive deviator is -dev
+    assert np.allclose(-dev / p, pred, atol=1e-12)
+
+
+def test_force_anisotropy_of_a_stress_free_assembly_is_zero():
+    from dem.measure import force_anisotropy
+
+    theta = np.linspace(0, np.pi, 10)
+    normals, fn, ft = _harmonic_contacts(theta, 0.0, 0.0, 0.0, 0.0, 0.0)
+    assert all(v == 0.0 for v in force_anisotropy(normals, fn, ft).values())
+    assert force_anisotropy(normals[:2], fn[:2] + 1, ft[:2])["a_n"] == 0.0

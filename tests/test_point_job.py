@@ -9,6 +9,7 @@ import pytest
 
 from contfab import material_point as mp
 from contfab.bench import point as bench_point
+from contfab.calibration import point_job
 from contfab.cli import main
 from contfab.models import tiers
 from dem.history import HISTORY_COLUMNS
@@ -70,6 +71,24 @@ def test_point_with_a_parameter_file_and_tier_2_writes_the_fabric_columns(tmp_pa
     print(f"\ncontfab point simple_shear_reversal --params {FIXED_PARAMS.name} --tier 2: {len(rows)} rows, "
           f"at γ = {col['gamma'][-1]:.2f}: R/P {col['RP'][-1]:.4f}, c {col['c'][-1]:.4f}, "
           f"z {col['z'][-1]:.3f}, B {col['B'][-1]:.3f}, θp {np.degrees(col['theta_p'][-1]):.1f}°")
+
+
+def test_a_cold_tier_2_kernel_is_announced_once_on_stderr(tmp_path, capsys, monkeypatch):
+    """With the tier-2 kernel reported as not compiled (a cold cache), the first
+    ``contfab point --tier 2`` says on stderr that it is compiling, a second one does not;
+    a tier-0 run never does."""
+    from dem import numba_cache
+
+    monkeypatch.setattr(numba_cache, "is_compiled", lambda dispatcher: False)
+    monkeypatch.setattr(numba_cache, "_ANNOUNCED", set())
+    for k, tier in enumerate(("0", "2", "2")):
+        assert main(["point", "isotropic_compression", "--tier", tier,
+                     "--out", str(tmp_path / str(k))]) == 0
+        err = capsys.readouterr().err
+        said = [line for line in err.splitlines() if line.startswith("compiling ")]
+        assert said == (["compiling the tier-2 model kernels (first use of this code; about "
+                         f"{point_job.COMPILE_TIME[2]} on one core, cached for later runs)"]
+                        if k == 1 else []), err
 
 
 def test_probe_family_writes_one_history_per_probe_and_the_envelope(tmp_path):

@@ -1,9 +1,9 @@
-"""Issue 7: the reduced stability matrix of every component, and the long-run drift checks.
+"""The reduced stability matrix of every component, and the long-run drift checks.
 
-Acceptance 1-2: every point of the reduced matrix ends in PASS (accuracy within the
+Every point of the reduced matrix ends in PASS (accuracy within the
 tolerance of its stated reference) or a CLEAR_ERROR whose message names the limit and
 the value; none is NaN, inf, silently wrong or over its time budget (core.evaluate
-judges each; the full matrix is ``contfab stability --full``). Acceptance 3 (slow):
+judges each; the full matrix is ``contfab stability --full``). Slow:
 DEM simple shear to γ = 10 and 10^6 material-point steps keep every invariant.
 """
 import math
@@ -24,13 +24,16 @@ def _outcomes(component):
 
 
 def _check(outcomes):
-    bad = [o for o in outcomes if o.outcome == FAIL]
-    assert not bad, "\n".join(f"{o.axis}={o.value}: {o.outcome} {o.message}" for o in bad)
+    """Every point PASSes (accuracy within its tolerance) or is a CLEAR_ERROR naming its
+    limit: a FAIL and an ACCURACY_LOST are both failures of the reduced matrix."""
+    unclear = [o for o in outcomes if o.outcome not in (PASS, CLEAR_ERROR)]
+    assert not unclear, "\n".join(f"{o.axis}={o.value}: {o.outcome} accuracy {o.accuracy:.3g} "
+                                   f"(tolerance {o.tolerance:.3g}) {o.message}" for o in unclear)
     for o in outcomes:
         if o.outcome == CLEAR_ERROR:
             assert names_limit(o.message), o.message
-        else:                               # PASS, or ACCURACY_LOST within its stated bound
-            assert math.isfinite(o.accuracy) and o.reference and o.message, o
+        else:
+            assert o.accuracy <= o.tolerance and o.reference, o
 
 
 def test_reduced_point_matrix_passes_or_errors_clearly():

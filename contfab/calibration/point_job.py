@@ -12,7 +12,9 @@ a model run of the same path sit side by side)
 For a probe family each probe writes ``history_<k>.csv`` (k in the order of
 ``Path.expand()``) and ``response.png`` shows the response envelope. The path and the
 parameters are validated and every run finishes before anything is written; every file is
-written atomically, so an error leaves no partial file.
+written atomically, so an error leaves no partial file. The first tier-2 run after an
+install or an edit of the kernels' sources says on stderr, once, that it is compiling
+(:data:`COMPILE_TIME`).
 """
 from __future__ import annotations
 
@@ -24,8 +26,12 @@ from contfab import material_point as mp
 from contfab.models import tiers
 from contfab.params import default_params, default_params_path, load_params
 from dem.fileio import write_csv, write_json
+from dem.numba_cache import announce_compiling
 from dem.provenance import code_versions
 from dem.paths import load_path
+
+COMPILE_TIME = {2: "3 min"}
+"""Cold compile time of the tiers whose kernels take long to compile (measured, one core)."""
 
 
 def run_job(path_name: str, out_dir: str | FsPath, params_file: str | None = None,
@@ -37,6 +43,9 @@ def run_job(path_name: str, out_dir: str | FsPath, params_file: str | None = Non
     params = default_params() if params_file is None else load_params(params_file)
     if tier is not None:
         params = params.with_tier(tier)          # validates the tier and its sections
+    if params.tier in COMPILE_TIME:
+        announce_compiling(tiers.KERNELS[params.tier], f"the tier-{params.tier} model kernels",
+                           COMPILE_TIME[params.tier])
     t0 = time.perf_counter()
     results = mp.run_family(path, params, increment=increment, progress=progress)
     seconds = time.perf_counter() - t0
