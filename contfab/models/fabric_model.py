@@ -107,18 +107,17 @@ start (``_cutting_plane_guess``) gained ~2 % more for a cold compile of 2.5 min 
 1.5: not done.
 
 Each call site of an inlined function is a copy of it that numba compiles anew, and every
-compiled caller above optimizes it again, so they are called from as few sites as the
-algorithm allows: the local Newton evaluates its residuals at one site for its start and its
-restart, the ridge return its two configurations in a loop. A constant count or switch passed
-to a compiled (not inlined) callee is a NumPy scalar (``slip_planes.WARM_START``,
-:data:`ONE_STEP`, ``np.True_``), not a Python literal, which numba would compile the callee
-for once per value. Together these took a cold compile of :func:`update_points` (one update,
-fresh cache, one thread; the two compiles side by side on a loaded 2-core machine) from
-117 to 86 s of CPU
-time, outputs bitwise unchanged and the update's speed within noise (kernel alone, median of
-the minimum per-update CPU time of 3 interleaved runs: 1.77 -> 1.78 µs, anisotropic fabric
-1.86 -> 1.85 µs). Compiling ``_residual`` out of line as well took a further ~17 % off the
-compile but slowed the update by 1-4 %: not done.
+compiled caller above optimizes it again, so they are called from as few sites as the algorithm
+allows: the local Newton evaluates its residuals at one site for its start and its restart, the
+ridge return its two configurations in a loop. A constant count or switch passed to a compiled
+(not inlined) callee is a NumPy scalar (``slip_planes.WARM_START``, :data:`ONE_STEP`,
+``np.True_``), not a Python literal, which numba would compile the callee for once per value.
+Together these took a cold compile of :func:`update_points` (one update, fresh cache, one
+thread; the two compiles side by side on a loaded 2-core machine) from 117 to 86 s of CPU time
+(another pair: 106 to 78 s), outputs bitwise unchanged and the update's speed within noise
+(kernel alone, median of the minimum per-update CPU time of 3 interleaved runs: 1.77 -> 1.78
+µs, anisotropic fabric 1.86 -> 1.85 µs). Compiling ``_residual`` out of line as well took a
+further ~17 % off the compile but slowed the update by 1-4 %: not done.
 
 **Parameter array** (:meth:`contfab.params.Params.array` (2): the ``[regularization]``,
 ``[tier1]`` and ``[tier2]`` parts; angles in radians; 0-7 are tier 1's layout)::
