@@ -89,7 +89,11 @@ N_PL = 46
 YF_F, YF_FS, YF_FP, YF_N, YF_NS, YF_NP, YF_TR, YF_TRS, YF_TRP = 0, 1, 4, 7, 10, 19, 37, 38, 41
 N_YF = 47
 
-NEWTON_MAXIT_PLANE = 60
+NEWTON_MAXIT_PLANE = np.int64(60)
+WARM_START = np.int64(0)
+"""``n_search`` of a plane search from the warm start alone (no grid). This and the step limit
+above are NumPy scalars, not Python literals: numba compiles a callee once per literal value
+it is called with, once in all for a NumPy scalar."""
 PLANE_TOL = 1e-13
 """Plane search: a Newton or bisection step below this (radians of u) ends it."""
 PLANE_LAST_STEP = 1e-7
