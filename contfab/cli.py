@@ -74,6 +74,10 @@ def _dem_settings_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--prep-rate", type=float,
                    help="strain-rate cap of the preparation's compression, a packing knob "
                         "(default 1e-2; slower: looser with friction)")
+    p.add_argument("--prep-quench", type=int,
+                   help="when --mu-prep is above --mu: steps between the velocity resets of the "
+                        "collapse that lowering the friction starts (default 10, looser; 0: the "
+                        "collapse runs with inertia)")
     p.add_argument("--kappa", type=float, help="stiffness number kn/P0 (default 1e4)")
     p.add_argument("--inertial", type=float,
                    help="inertial number I setting the reference strain rate (default 1e-3)")
@@ -93,8 +97,8 @@ def _dem_settings_args(p: argparse.ArgumentParser) -> None:
                         "dem/threads.py)")
 
 
-DEM_SETTINGS = ("n", "seed", "radii", "kappa", "mu", "mu_prep", "prep_rate", "inertial", "e",
-                "kt_ratio", "mu_roll", "dt_fraction", "prep_max_steps", "allow_unrelaxed",
+DEM_SETTINGS = ("n", "seed", "radii", "kappa", "mu", "mu_prep", "prep_rate", "prep_quench",
+                "inertial", "e", "kt_ratio", "mu_roll", "dt_fraction", "prep_max_steps", "allow_unrelaxed",
                 "checkpoint_every")
 
 

@@ -44,8 +44,8 @@ from dem.servo import L_MAX_FACTOR
 from dem.particles import parse_radii, sample_radii
 from dem.paths import load_path
 from dem.provenance import code_versions
-from dem.prepare import (CHECK_EVERY, E_SWITCH, PreparationError, compress_to_pressure, lower_friction,
-                         random_gas, switch_friction)
+from dem.prepare import (CHECK_EVERY, E_SWITCH, QUENCH_EVERY, PreparationError, compress_to_pressure,
+                         lower_friction, random_gas, switch_friction)
 from dem.rve import PathRunner, history_table
 
 
@@ -71,6 +71,7 @@ class Settings:
     dt_fraction: float = DT_FRACTION
     skin: float = 0.2
     prep_rate: float = 1e-2
+    prep_quench: int = QUENCH_EVERY     # velocity resets of the friction drop (dem.prepare)
     c_gas: float = 0.3
     checkpoint_every: int = 10
     prep_max_steps: int = 2_000_000
@@ -96,6 +97,10 @@ class Settings:
         if not (isinstance(self.prep_max_steps, int) and self.prep_max_steps >= CHECK_EVERY):
             raise ValueError(f"prep_max_steps = {self.prep_max_steps} out of range; accepted "
                              f"integers >= {CHECK_EVERY}")
+        if not (isinstance(self.prep_quench, int) and self.prep_quench >= 0
+                and (self.prep_quench == 0 or CHECK_EVERY % self.prep_quench == 0)):
+            raise ValueError(f"prep_quench = {self.prep_quench} out of range; accepted 0 (the "
+                             f"friction drop runs with inertia) or a divisor of {CHECK_EVERY}")
         if not (isinstance(self.checkpoint_every, int) and self.checkpoint_every >= 0):
             raise ValueError(f"checkpoint_every = {self.checkpoint_every} out of range; accepted "
                              f"integers >= 0 (0: only at the end)")
@@ -122,7 +127,8 @@ def prepare_sample(settings: Settings, progress: bool = True):
     if mu_prep > settings.mu and info.relaxed:
         state, info = lower_friction(state, dyn_prep, settings.law(), info,
                                      max_steps=settings.prep_max_steps,
-                                     progress=_prep_progress(bar))
+                                     progress=_prep_progress(bar),
+                                     quench_every=settings.prep_quench)
     if bar is not None:
         bar.close()
     if not info.relaxed:

@@ -14,11 +14,14 @@
    with σxy servo-controlled to 0 as well,
    then the friction is switched to the test value (tangential histories kept).
    When μ_prep > μ the switch leaves contacts above the new Coulomb bound, so
-   :func:`lower_friction` relaxes the sample again at P0: first with strongly damped
-   contacts (restitution E_SWITCH), which keeps the collapse that the lower friction
-   starts gentle (with the test restitution the sample compacts further: measured
-   c0 0.8050 against 0.8041, N = 1000, κ = 1e3, μ_prep = 10, docs/dem_validation.md),
-   then with the test law.
+   :func:`lower_friction` relaxes the sample again at P0: first a quenched collapse,
+   strongly damped contacts (restitution E_SWITCH) with the fluctuation velocities and
+   spins set to zero every ``quench_every`` steps, then a relaxation with the test law.
+   The quench removes the kinetic energy that the collapse releases before it can carry
+   the discs past the first arrangement that is stable under μ, so the collapse stops in
+   the nearest stable arrangement instead of a denser one (measured at N = 1000,
+   κ = 1e3, μ_prep = 10: c0 about 0.801 quenched against 0.805 with inertia,
+   docs/dem_validation.md); ``quench_every`` = 0 lets the collapse run with inertia.
 3. :func:`compress_to_fraction` (check of Madadi et al. 2004): compression at a prescribed strain
    rate to a target packing fraction, then relaxation at fixed volume. Targets above
    C_MAX are refused: random disc packings jam near c ≈ 0.84, and past C_MAX the mean
@@ -48,6 +51,13 @@ P_TOL = 1e-3
 FORCE_TOL = 1e-3
 KINETIC_TOL = 1e-5
 CHECK_EVERY = 500
+QUENCH_EVERY = 10
+QUENCH_FORCE_TOL = 1e-4
+"""Unbalanced force threshold that ends the quenched collapse (ten times below FORCE_TOL: a
+quenched sample creeps slowly, and a creep stopped early turns into a collapse under
+the test law)."""
+"""Steps between the velocity resets of the quenched friction drop (a fraction of a contact
+time, t_c ≈ 16 steps at the default time step; must divide CHECK_EVERY)."""
 
 
 class PreparationError(ValueError):
@@ -127,26 +137,42 @@ def relaxed(state: State, law: ContactLaw, p_target: float | None, info: PrepInf
     return info.relaxed
 
 
-def _run_until_relaxed(state, dyn, control, p_target, max_steps, info, progress):
+def _run_until_relaxed(state, dyn, control, p_target, max_steps, info, progress, quench_every=0,
+                       force_tol=FORCE_TOL):
+    """Advance until :func:`relaxed` (checked every CHECK_EVERY steps); with
+    ``quench_every`` > 0 the fluctuation velocities and spins are set to zero every
+    ``quench_every`` steps (after the check)."""
+    chunk = quench_every if quench_every > 0 else CHECK_EVERY
     while info.steps < max_steps:
-        advance(state, dyn, CHECK_EVERY, control)
-        info.steps += CHECK_EVERY
-        if progress is not None:
-            progress(info)
-        if relaxed(state, dyn.law, p_target, info):
-            break
+        advance(state, dyn, chunk, control)
+        info.steps += chunk
+        if info.steps % CHECK_EVERY == 0:
+            if progress is not None:
+                progress(info)
+            if relaxed(state, dyn.law, p_target, info, force_tol):
+                break
+        if quench_every > 0:
+            state.v[:] = 0.0
+            state.omega[:] = 0.0
     return state
 
 
 def compress_to_pressure(state: State, dyn: Dynamics, p0: float = 1.0, max_steps: int = 2_000_000,
-                         progress=None) -> tuple[State, PrepInfo]:
-    """Isotropic servo compression to P = p0, then relaxation (see the module doc)."""
+                         progress=None, quench_every: int = 0,
+                         force_tol: float = FORCE_TOL) -> tuple[State, PrepInfo]:
+    """Isotropic servo compression to P = p0, then relaxation (see the module doc);
+    ``quench_every`` > 0: velocities reset every that many steps, ``force_tol``: the
+    unbalanced force threshold (both for :func:`lower_friction`)."""
+    if not (isinstance(quench_every, int) and quench_every >= 0
+            and (quench_every == 0 or CHECK_EVERY % quench_every == 0)):
+        raise PreparationError(f"quench_every = {quench_every} out of range; accepted 0 (no "
+                               f"quench) or a divisor of {CHECK_EVERY}")
     info = PrepInfo()
     neighbours.rebuild(state, dyn.skin)
     evaluate_forces(state, dyn)
     target = np.array([-p0, -p0, 0.0])
     ctl = Control(np.zeros(4), np.array([True, True, True, False]), target, target)
-    _run_until_relaxed(state, dyn, ctl, p0, max_steps, info, progress)
+    _run_until_relaxed(state, dyn, ctl, p0, max_steps, info, progress, quench_every, force_tol)
     return reset_accumulators(state), info
 
 
@@ -174,18 +200,22 @@ def compress_to_fraction(state: State, dyn: Dynamics, target_c: float, rate: flo
 
 
 def lower_friction(state: State, dyn: Dynamics, law: ContactLaw, info: PrepInfo,
-                   p0: float = 1.0, max_steps: int = 2_000_000,
-                   progress=None) -> tuple[State, PrepInfo]:
+                   p0: float = 1.0, max_steps: int = 2_000_000, progress=None,
+                   quench_every: int = QUENCH_EVERY) -> tuple[State, PrepInfo]:
     """Relax at P = p0 under ``law`` a sample compressed with a higher friction (module
-    doc, 2); returns the state and ``info`` (of the compression) with the steps added,
-    ``c_compressed`` set and the final values. ``dyn``: the preparation's dynamics; its
-    time step is checked against both laws' stability limits."""
+    doc, 2): a quenched collapse (velocities reset every ``quench_every`` steps; 0: none)
+    with damped contacts, then the test law; returns the state and ``info`` (of the
+    compression) with the steps added, ``c_compressed`` set and the final values.
+    ``dyn``: the preparation's dynamics; its time step is checked against both laws'
+    stability limits."""
     out = replace(info, c_compressed=info.c)
     fraction = dyn.dt / math.sqrt(float(state.mass.min()) / law.kn)
-    for stage_law in (replace(law, e=E_SWITCH), law):
+    quenched = (replace(law, e=E_SWITCH), quench_every,
+                QUENCH_FORCE_TOL if quench_every > 0 else FORCE_TOL)
+    for stage_law, quench, force_tol in (quenched, (law, 0, FORCE_TOL)):
         time_step(stage_law, float(state.mass.min()), fraction)
         state, more = compress_to_pressure(state, replace(dyn, law=stage_law), p0,
-                                           max_steps - out.steps, progress)
+                                           max_steps - out.steps, progress, quench, force_tol)
         out = replace(more, steps=out.steps + more.steps, c_compressed=out.c_compressed)
     return state, out
 
