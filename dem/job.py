@@ -51,7 +51,9 @@ from dem.rve import PathRunner, history_table
 
 LOOSE = {"mu_prep": 10.0, "prep_rate": 1e-3}
 """The loosest preparation measured (docs/dem_validation.md, "Packing fraction"): a slow
-compression with a high friction, lowered to the test friction at P0."""
+compression with a high friction, lowered to the test friction at P0 in a quenched collapse
+(``prep_quench``, dem.prepare); c0 0.8007–0.8039 at N = 1000, κ = 1e3, 0.007–0.011 below
+the critical packing fraction."""
 
 
 @dataclass(frozen=True)

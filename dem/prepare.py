@@ -20,8 +20,9 @@
    The quench removes the kinetic energy that the collapse releases before it can carry
    the discs past the first arrangement that is stable under μ, so the collapse stops in
    the nearest stable arrangement instead of a denser one (measured at N = 1000,
-   κ = 1e3, μ_prep = 10: c0 about 0.801 quenched against 0.805 with inertia,
-   docs/dem_validation.md); ``quench_every`` = 0 lets the collapse run with inertia.
+   κ = 1e3, μ_prep = 10, rate 1e-3, seeds 1–3: c0 0.8027 quenched against 0.8053 with
+   inertia, docs/dem_validation.md); ``quench_every`` = 0 lets the collapse run with
+   inertia.
 3. :func:`compress_to_fraction` (check of Madadi et al. 2004): compression at a prescribed strain
    rate to a target packing fraction, then relaxation at fixed volume. Targets above
    C_MAX are refused: random disc packings jam near c ≈ 0.84, and past C_MAX the mean
