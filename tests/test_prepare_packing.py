@@ -67,3 +67,10 @@ def test_a_time_step_too_large_for_the_friction_drop_is_refused_up_front():
     Settings(mu_prep=0.5, dt_fraction=0.2).validate()        # no friction drop: e = 0.5 only
     with pytest.raises(TimeStepError, match=r"0.2 .*accepted range \(0, 0.114\d*\] .*e = 0.05"):
         Settings(mu_prep=10.0, dt_fraction=0.2).validate()
+
+
+@pytest.mark.parametrize("bad", [7, -10, 1.0])
+def test_a_quench_interval_that_does_not_divide_the_check_interval_is_refused(bad):
+    with pytest.raises(ValueError, match=rf"prep_quench = {bad} out of range; accepted 0 .*"
+                                         r"divisor of 500"):
+        Settings(mu_prep=10.0, prep_quench=bad).validate()
