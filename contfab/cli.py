@@ -331,6 +331,10 @@ def _add_fexdem(p: argparse.ArgumentParser) -> None:
     p.add_argument("--resume", action="store_true",
                    help="continue an interrupted run in OUT from its checkpoints (OUT/cells; "
                         "same case and settings), then run the tiers")
+    p.add_argument("--adaptive", type=float, default=None, metavar="TOL",
+                   help="also run adaptive FE×DEM: at each point the cheapest model whose "
+                        "measured R/P error bound meets TOL, a DEM cell where none does "
+                        "(compared with the full FE×DEM run)")
 
 
 def _run_fexdem(args) -> None:
@@ -341,6 +345,9 @@ def _run_fexdem(args) -> None:
     from contfab.params import default_params, load_params
     from dem.job import Settings, prepare_job
 
+    if args.adaptive is not None:
+        from contfab.fexdem.adaptive import model_choice
+        model_choice(args.adaptive)         # a bad tolerance fails before any work
     sample = args.sample
     if sample is None and args.resume:
         sample = Path(args.out) / "prepared.npz"
@@ -356,7 +363,8 @@ def _run_fexdem(args) -> None:
     options = CELL_OPTIONS if args.relax is None else CellOptions(force_tol=args.relax)
     report = run(args.case, str(sample), args.out, params, p0=args.p0, backend=args.backend,
                  workers=args.workers, address=args.address, options=options,
-                 resume=args.resume, blocks=args.blocks, layout=args.layout, **extra)
+                 resume=args.resume, blocks=args.blocks, layout=args.layout,
+                 adaptive=args.adaptive, **extra)
     print(f"{args.case}: {report['cells']} DEM cells of {report['discs_per_cell']} discs, "
           f"{report['elements']} {report['element']} elements"
           + (f", FE×DEM resumed at t = {report['resumed_from_t']:.4g}" if args.resume else ""))
@@ -367,6 +375,10 @@ def _run_fexdem(args) -> None:
                                        f"{err['cost_ratio_dem_over_tier']:.3g}")
         print(f"  {name:>6}: {r['wall_s']:.1f} s, {r['steps']} steps, {r['newton_iterations']} "
               f"Newton iterations{tail}")
+    if args.adaptive is not None:
+        a = report["adaptive"]
+        print(f"  adaptive: {a['cell_points']} of {a['points']} points ended as DEM cells, "
+              f"CPU {a['cost_ratio_cpu_adaptive_over_dem']:.3g} of the FE×DEM cells'")
     print(f"report written to {report['report']}, overlay {report['overlay']}")
 
 

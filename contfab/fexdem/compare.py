@@ -14,7 +14,14 @@ Written into ``--out`` (atomically):
                        "profile": where the FE×DEM time went and the cost model's T(W)
     profile.npz        the per-call, per-cell timings behind it (contfab.fexdem.profile.load)
 
-Errors of a tier against FE×DEM: the curve error max|y_tier - y_dem| / max|y_dem| with
+With ``adaptive`` = a tolerance (``--adaptive TOL``) the scene runs a fourth time as
+adaptive FE×DEM (:mod:`contfab.fexdem.adaptive`: the cheapest model whose measured R/P
+error bound meets TOL, a DEM cell where none does), written as ``<case>_adaptive*``; the
+report's ``adaptive`` holds the choice, the switched points (the model's and the cell's
+state at each switch) and the CPU of the model updates, the cells and the switches, and
+``cost_ratio_cpu_adaptive_over_dem`` that CPU over the FE×DEM cells' CPU.
+
+Errors of a tier (or of the adaptive run) against FE×DEM: the curve error max|y_tier - y_dem| / max|y_dem| with
 the tier's curve interpolated at the FE×DEM abscissae, and at the end of the stage the
 relative L2 field errors (quadrature-weighted) of the stress, of R/P and of c. The
 cost ratio is the FE×DEM wall time over the tier's (each tier's kernels are loaded or
@@ -40,6 +47,7 @@ from contfab.executor import WORKER_ENV
 from contfab.fem import analysis
 from contfab.fem.material import TierMaterial
 from contfab.fem.solver import NewtonOptions, Solver
+from contfab.fexdem.adaptive import AdaptiveMaterial, AdaptiveSolver, model_choice
 from contfab.fexdem.backends import DaskCells, ProcessCells, SerialCells
 from contfab.fexdem.cell import CellOptions
 from contfab.fexdem.material import (STATE_NAMES, DemMaterial, FexdemSolver, checkpointed_step,
@@ -139,10 +147,14 @@ def field_errors(disc, ref_stress, ref_c, stress, c) -> dict:
 def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1.0,
         backend: str = "serial", workers: int = 2, address: str | None = None,
         options: CellOptions = CELL_OPTIONS, progress: bool = True, resume: bool = False,
-        blocks: int | None = None, layout: str = "interleaved", **overrides) -> dict:
-    """Run ``case`` three ways and write the report (see the module doc); returns it."""
+        blocks: int | None = None, layout: str = "interleaved", adaptive: float | None = None,
+        **overrides) -> dict:
+    """Run ``case`` three ways (four with ``adaptive``, the tolerance of adaptive FE×DEM)
+    and write the report (see the module doc); returns it."""
     if case not in CASES:
         raise ValueError(f"case {case!r} unknown; accepted {sorted(CASES)}")
+    if adaptive is not None:
+        model_choice(adaptive)               # a bad tolerance fails before the runs
     cfg = dict(CASES[case], **overrides)
     xcol, ycol = cfg.pop("curve")
     out = Path(out)
@@ -205,20 +217,43 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
         tres = analysis.run(tsolver, [scene.stage], scene.measure,
                             analysis.Outputs(out, f"{case}_tier{tier}", curve_axes=(xcol, ycol)),
                             progress)
-        name = f"tier{tier}"
-        report["runs"][name] = _summary(tres, tsolver, time.perf_counter() - t0)
-        curves[name], finals[name] = tres, tsolver.committed
-        x, y = curves["dem"].column(xcol), curves["dem"].column(ycol)
-        yt = np.interp(x, tres.column(xcol), tres.column(ycol))
-        ref, fin = finals["dem"], tsolver.committed
-        report["runs"][name]["errors"] = {
-            "curve": float(np.max(np.abs(yt - y)) / np.max(np.abs(y))),
-            "fields": field_errors(disc, ref.stress, ref.state[:, STATE_NAMES.index("c")],
-                                   fin.stress, fin.state[:, tiers.STATE_NAMES[tier].index("c")]),
-            "cost_ratio_dem_over_tier": report["runs"]["dem"]["wall_s"] / report["runs"][name]["wall_s"]}
+        _compare(report, f"tier{tier}", tres, tsolver, time.perf_counter() - t0, curves, finals,
+                 disc, xcol, ycol)
+    if adaptive is not None:
+        amat = AdaptiveMaterial(prepared, disc, params, adaptive, options, p_unit=p0,
+                                modulus=modulus)
+        amat.update(stress0, state0, np.zeros((disc.npoints, 3)),
+                    np.zeros(disc.npoints))                          # JIT, untimed
+        t0 = time.perf_counter()
+        asolver = AdaptiveSolver(disc, amat, DEM_NEWTON)
+        ares = analysis.run(asolver, [scene.stage], scene.measure,
+                            analysis.Outputs(out, f"{case}_adaptive", curve_axes=(xcol, ycol),
+                                             curve_each_step=True), progress)
+        _compare(report, "adaptive", ares, asolver, time.perf_counter() - t0, curves, finals,
+                 disc, xcol, ycol)
+        report["adaptive"] = amat.report()
+        dem_cpu = report["profile"]["trials"]["cell_cpu_s"]
+        report["adaptive"]["cost_ratio_cpu_adaptive_over_dem"] = (
+            sum(amat.cpu.values()) / dem_cpu if dem_cpu > 0 else None)
     report["overlay"] = str(_overlay(out / "overlay.png", curves, xcol, ycol, case))
     report["report"] = str(write_json(out / "report.json", report))
     return report
+
+
+def _compare(report: dict, name: str, res, solver, wall: float, curves: dict, finals: dict,
+             disc, xcol: str, ycol: str) -> None:
+    """Run ``name``'s summary and its errors and cost ratio against FE×DEM into ``report``."""
+    report["runs"][name] = _summary(res, solver, wall)
+    curves[name], finals[name] = res, solver.committed
+    x, y = curves["dem"].column(xcol), curves["dem"].column(ycol)
+    yt = np.interp(x, res.column(xcol), res.column(ycol))
+    ref, fin = finals["dem"], solver.committed
+    names = solver.material.state_names
+    report["runs"][name]["errors"] = {
+        "curve": float(np.max(np.abs(yt - y)) / np.max(np.abs(y))),
+        "fields": field_errors(disc, ref.stress, ref.state[:, STATE_NAMES.index("c")],
+                               fin.stress, fin.state[:, names.index("c")]),
+        "cost_ratio_dem_over_tier": report["runs"]["dem"]["wall_s"] / wall}
 
 
 def _summary(res, solver, wall: float) -> dict:
@@ -239,7 +274,8 @@ def _overlay(path: Path, curves: dict, xcol: str, ycol: str, case: str) -> Path:
     fig, ax = plt.subplots(figsize=(6, 4))
     for name, res in curves.items():
         ax.plot(res.column(xcol), res.column(ycol), "o-" if name == "dem" else "-", ms=3,
-                label="FE×DEM" if name == "dem" else name.replace("tier", "tier "))
+                label={"dem": "FE×DEM", "adaptive": "adaptive FE×DEM"}.get(
+                    name, name.replace("tier", "tier ")))
     ax.set_xlabel(xcol)
     ax.set_ylabel(f"{ycol} (stress unit p0)")
     ax.set_title(f"{case}: FE×DEM and the model tiers")
