@@ -382,6 +382,26 @@ def _run_fexdem(args) -> None:
     print(f"report written to {report['report']}, overlay {report['overlay']}")
 
 
+def _add_fexdem_band(p: argparse.ArgumentParser) -> None:
+    from contfab.fexdem.compare import CASES
+
+    p.add_argument("case", choices=sorted(CASES), help="the run's scene")
+    p.add_argument("--out", required=True, help="the run's output directory (its cells/)")
+    p.add_argument("--nx", type=int, default=None, help="the run's elements across")
+    p.add_argument("--ny", type=int, default=None, help="the run's elements up")
+
+
+def _run_fexdem_band(args) -> None:
+    from contfab.fexdem.compare import band_of_run
+
+    res = band_of_run(args.case, args.out, args.nx, args.ny)
+    print(f"{args.case} at t = {res['t']:.4g} (step {res['step']}): shear strain contrast "
+          f"{res['contrast']:.3g}, top-10 % ratio {res['peak_ratio']:.3g}, half of it on "
+          f"{100 * res['half_area']:.1f} % of the area, band at {res['angle_deg']:.1f}° "
+          f"(elongation {res['elongation']:.2g})")
+    print(f"written {res['json']} and {res['figure']}")
+
+
 # --------------------------------------------------------------------------- bench
 
 BENCHES = {
@@ -459,6 +479,8 @@ COMMANDS = {
     "bench": (_add_bench, _run_bench, "speed and memory benchmarks"),
     "fexdem": (_add_fexdem, _run_fexdem, "FE×DEM: a DEM cell per quadrature point, against "
                                          "tiers 1 and 2 on the same scene"),
+    "fexdem-band": (_add_fexdem_band, _run_fexdem_band, "localization of an FE×DEM run's "
+                    "last checkpointed field: shear strain contrast, band angle, figure"),
     "point": (_add_point, _run_point, "drive one material point along a loading path (CSV, "
                                       "JSON, PNG)"),
     "calibrate": (_add_calibrate, _run_calibrate, "fit the model tiers to a DEM campaign: "

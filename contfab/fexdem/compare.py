@@ -10,6 +10,8 @@ Written into ``--out`` (atomically):
     cells/             the cells' and the FE field's checkpoints of the last converged step
                        (FexdemSolver.resume); the FE×DEM curve CSV is rewritten every step
     overlay.png        the load-displacement curves of the three runs
+    <case>_dem_band.png  the FE×DEM shear strain γ at the end (contfab.fexdem.band; every
+                       run's localization measures are in the report, "band")
     report.json        settings, N per cell, cells, wall times, Newton figures, errors, costs,
                        "profile": where the FE×DEM time went and the cost model's T(W)
     profile.npz        the per-call, per-cell timings behind it (contfab.fexdem.profile.load)
@@ -48,10 +50,11 @@ from contfab.fem import analysis
 from contfab.fem.material import TierMaterial
 from contfab.fem.solver import NewtonOptions, Solver
 from contfab.fexdem.adaptive import AdaptiveMaterial, AdaptiveSolver, model_choice
+from contfab.fexdem.band import band_figure, localization
 from contfab.fexdem.backends import DaskCells, ProcessCells, SerialCells
 from contfab.fexdem.cell import CellOptions
-from contfab.fexdem.material import (STATE_NAMES, DemMaterial, FexdemSolver, checkpointed_step,
-                                     elastic_modulus)
+from contfab.fexdem.material import (FE_CHECKPOINT, STATE_NAMES, DemMaterial, FexdemSolver,
+                                     checkpointed_step, elastic_modulus)
 from contfab.fexdem.profile import costs
 from contfab.fexdem.scenes import build
 from contfab.models import tiers
@@ -123,6 +126,33 @@ def _rows_before(curve: Path, solver: FexdemSolver, measure) -> list[list]:
                     rows.append([r[0], float(r[1]), int(r[2]), int(r[3]), *map(float, r[4:])])
     last = solver.records[-1]
     return rows + [[last.stage, t, last.iterations, last.cuts, *measure(solver).values()]]
+
+
+def band_of_run(case: str, out: str | Path, nx: int | None = None, ny: int | None = None) -> dict:
+    """Localization (:mod:`contfab.fexdem.band`) of the FE×DEM field checkpointed in
+    ``out``/cells (a finished or interrupted run of ``case`` on ``nx`` × ``ny`` elements):
+    its total strain since the start; written to ``out``/band.json and
+    ``out``/<case>_dem_band.png."""
+    if case not in CASES:
+        raise ValueError(f"case {case!r} unknown; accepted {sorted(CASES)}")
+    cfg = {k: v for k, v in CASES[case].items() if k in ("nx", "ny", "width", "height")}
+    cfg.update({k: v for k, v in (("nx", nx), ("ny", ny)) if v is not None})
+    out = Path(out)
+    ck = out / "cells" / FE_CHECKPOINT
+    if not ck.exists():
+        raise FileNotFoundError(f"no FE×DEM field checkpoint {ck}")
+    disc = build(case, **cfg).disc
+    with np.load(ck) as z:
+        u, t, step = z["u"], float(z["t"]), int(z["fe_step"])
+    if len(u) != disc.ndofs:
+        raise ValueError(f"{ck} has {len(u)} DOFs, the {cfg['nx']} x {cfg['ny']} mesh of {case} "
+                         f"{disc.ndofs} (give the run's --nx and --ny)")
+    strain = disc.strain(u)[0]
+    res = {"case": case, "t": t, "step": step, **cfg, **localization(disc, strain)}
+    res["figure"] = str(band_figure(out / f"{case}_dem_band.png", disc, strain,
+                                    f"{case}: FE×DEM shear strain at t = {t:.3g}"))
+    res["json"] = str(write_json(out / "band.json", res))
+    return res
 
 
 def _rel_l2(w: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
@@ -204,6 +234,10 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
             if owned is not None:
                 owned.close()
     report["runs"]["dem"] = _summary(res, solver, time.perf_counter() - t0)
+    report["runs"]["dem"]["band"] = localization(disc, disc.strain(solver.committed.u)[0])
+    report["band_figure"] = str(band_figure(out / f"{case}_dem_band.png", disc,
+                                            disc.strain(solver.committed.u)[0],
+                                            f"{case}: FE×DEM shear strain at the end"))
     report["profile"]["startup_s"] = startup    # cells made, kernels loaded (or compiled)
     report["profile"]["outputs_and_close_s"] = (report["runs"]["dem"]["wall_s"] - startup
                                                 - report["profile"]["stage_s"])
@@ -244,6 +278,7 @@ def _compare(report: dict, name: str, res, solver, wall: float, curves: dict, fi
              disc, xcol: str, ycol: str) -> None:
     """Run ``name``'s summary and its errors and cost ratio against FE×DEM into ``report``."""
     report["runs"][name] = _summary(res, solver, wall)
+    report["runs"][name]["band"] = localization(disc, disc.strain(solver.committed.u)[0])
     curves[name], finals[name] = res, solver.committed
     x, y = curves["dem"].column(xcol), curves["dem"].column(ycol)
     yt = np.interp(x, res.column(xcol), res.column(ycol))
