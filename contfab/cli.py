@@ -331,6 +331,10 @@ def _add_fexdem(p: argparse.ArgumentParser) -> None:
     p.add_argument("--resume", action="store_true",
                    help="continue an interrupted run in OUT from its checkpoints (OUT/cells; "
                         "same case and settings), then run the tiers")
+    p.add_argument("--reference", default=None, metavar="DIR",
+                   help="a finished FE×DEM run of the same scene and sample (its --out): "
+                        "compare the tiers and --adaptive with it instead of running FE×DEM "
+                        "again (default --sample: that run's)")
     p.add_argument("--adaptive", type=float, default=None, metavar="TOL",
                    help="also run adaptive FE×DEM: at each point the cheapest model whose "
                         "measured R/P error bound meets TOL, a DEM cell where none does "
@@ -349,6 +353,12 @@ def _run_fexdem(args) -> None:
         from contfab.fexdem.adaptive import model_choice
         model_choice(args.adaptive)         # a bad tolerance fails before any work
     sample = args.sample
+    if sample is None and args.reference is not None:
+        import json
+        ref = Path(args.reference) / "report.json"
+        if not ref.exists():
+            raise FileNotFoundError(f"--reference: no finished FE×DEM run ({ref} is missing)")
+        sample = json.loads(ref.read_text())["prepared"]
     if sample is None and args.resume:
         sample = Path(args.out) / "prepared.npz"
         if not sample.exists():
@@ -364,7 +374,7 @@ def _run_fexdem(args) -> None:
     report = run(args.case, str(sample), args.out, params, p0=args.p0, backend=args.backend,
                  workers=args.workers, address=args.address, options=options,
                  resume=args.resume, blocks=args.blocks, layout=args.layout,
-                 adaptive=args.adaptive, **extra)
+                 adaptive=args.adaptive, reference=args.reference, **extra)
     print(f"{args.case}: {report['cells']} DEM cells of {report['discs_per_cell']} discs, "
           f"{report['elements']} {report['element']} elements"
           + (f", FE×DEM resumed at t = {report['resumed_from_t']:.4g}" if args.resume else ""))

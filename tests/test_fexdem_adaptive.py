@@ -119,3 +119,22 @@ def test_cells_everywhere_reproduce_fexdem(small):
             pass
     assert mat.is_cell.all() and mat.model_updates == 0
     np.testing.assert_allclose(solver.committed.stress, ref.committed.stress, rtol=0, atol=1e-10)
+
+
+def test_adaptive_against_a_finished_reference_run(small, tmp_path):
+    """``compare.run(reference=DIR)`` takes a finished FE×DEM run as the reference: with a
+    tolerance no model meets, the adaptive run (cells everywhere) is that run's curve; a
+    reference of another scene is refused, naming the difference."""
+    from contfab.fexdem import compare
+
+    kw = dict(strain=6e-4, steps=2, nx=1, ny=1)
+    ref = compare.run("biaxial", small, tmp_path / "ref", default_params(), progress=False, **kw)
+    rep = compare.run("biaxial", small, tmp_path / "adaptive", default_params(), progress=False,
+                      adaptive=0.01, reference=tmp_path / "ref", **kw)
+    assert rep["adaptive"]["cell_points"] == rep["cells"]
+    assert rep["runs"]["adaptive"]["errors"]["curve"] < 1e-9
+    assert rep["runs"]["tier1"]["errors"] == ref["runs"]["tier1"]["errors"] | {
+        "cost_ratio_dem_over_tier": rep["runs"]["tier1"]["errors"]["cost_ratio_dem_over_tier"]}
+    with pytest.raises(ValueError, match="another scene: scene"):
+        compare.run("biaxial", small, tmp_path / "other", default_params(), progress=False,
+                    adaptive=0.01, reference=tmp_path / "ref", **dict(kw, strain=1e-3))

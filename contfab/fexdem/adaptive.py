@@ -46,8 +46,8 @@ from dataclasses import asdict
 import numpy as np
 
 from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver
-from contfab.fexdem.cell import CellOptions, measure_cell, start_cell
-from contfab.fexdem.material import STATE_NAMES, elastic_modulus
+from contfab.fexdem.cell import CellOptions
+from contfab.fexdem.material import STATE_NAMES, elastic_modulus, initial_fields
 from contfab.fexdem.registry import CellRegistry
 from contfab.models import tiers
 from contfab.models.tiers import spin_derivative
@@ -55,7 +55,6 @@ from contfab.params import Params
 from contfab.selection.auto_tier import Choice, choose, load_table, params_for
 from contfab.selection.indicators import Tracker
 from contfab.tensors import isotropic_stiffness
-from dem import checkpoint
 
 DEM_PROBE = 0.1
 """Relative probe of the cells' own tangent (as :data:`contfab.fexdem.material.DEM_PROBE`)."""
@@ -121,12 +120,9 @@ class AdaptiveMaterial:
 
     def initial(self) -> tuple[np.ndarray, np.ndarray]:
         """(stress (n, 3), state (n, 5)) of the prepared sample at every point."""
-        state, dyn, _, _ = checkpoint.load(self.prepared)
-        stress, cell_state = measure_cell(start_cell(state, dyn))
-        n = self.disc.npoints
-        stress0 = np.tile(stress * self.p_unit, (n, 1))
+        stress0, state0 = initial_fields(self.prepared, self.disc.npoints, self.p_unit)
         self.tracker = Tracker(stress0, self.params.tier1.c_star)
-        return stress0, np.tile(np.concatenate([[0.0], cell_state]), (n, 1))
+        return stress0, state0
 
     def update(self, stress_n, state_n, dstrain, dspin) -> tiers.UpdateResult:
         stress_n = np.ascontiguousarray(stress_n, dtype=float)

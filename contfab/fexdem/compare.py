@@ -40,7 +40,9 @@ wall time and cost ratios then count the resumed part only (``resumed_from_t``).
 from __future__ import annotations
 
 import csv
+import json
 import time
+from types import SimpleNamespace
 from pathlib import Path
 
 import numpy as np
@@ -54,7 +56,7 @@ from contfab.fexdem.band import band_figure, localization
 from contfab.fexdem.backends import DaskCells, ProcessCells, SerialCells
 from contfab.fexdem.cell import CellOptions
 from contfab.fexdem.material import (FE_CHECKPOINT, STATE_NAMES, DemMaterial, FexdemSolver,
-                                     checkpointed_step, elastic_modulus)
+                                     checkpointed_step, elastic_modulus, initial_fields)
 from contfab.fexdem.profile import costs
 from contfab.fexdem.scenes import build
 from contfab.models import tiers
@@ -155,53 +157,16 @@ def band_of_run(case: str, out: str | Path, nx: int | None = None, ny: int | Non
     return res
 
 
-def _rel_l2(w: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
-    """sqrt(Σ w |a - b|² / Σ w |b|²) over the quadrature points (weights ``w``)."""
-    a, b = a.reshape(len(w), -1), b.reshape(len(w), -1)
-    return float(np.sqrt(np.sum(w[:, None] * (a - b) ** 2) / np.sum(w[:, None] * b ** 2)))
-
-
-def _mobilized(s: np.ndarray) -> np.ndarray:
-    """R/P per point (docs/theory.md §1)."""
-    return np.hypot(0.5 * (s[:, 0] - s[:, 1]), s[:, 2]) / (-0.5 * (s[:, 0] + s[:, 1]))
-
-
-def field_errors(disc, ref_stress, ref_c, stress, c) -> dict:
-    """Relative L2 errors of stress, R/P and c against the reference (FE×DEM) fields."""
-    w = disc.weights.reshape(-1)
-    return {"stress": _rel_l2(w, stress, ref_stress),
-            "R_over_P": _rel_l2(w, _mobilized(stress), _mobilized(ref_stress)),
-            "c": _rel_l2(w, c, ref_c)}
-
-
-def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1.0,
-        backend: str = "serial", workers: int = 2, address: str | None = None,
-        options: CellOptions = CELL_OPTIONS, progress: bool = True, resume: bool = False,
-        blocks: int | None = None, layout: str = "interleaved", adaptive: float | None = None,
-        **overrides) -> dict:
-    """Run ``case`` three ways (four with ``adaptive``, the tolerance of adaptive FE×DEM)
-    and write the report (see the module doc); returns it."""
-    if case not in CASES:
-        raise ValueError(f"case {case!r} unknown; accepted {sorted(CASES)}")
-    if adaptive is not None:
-        model_choice(adaptive)               # a bad tolerance fails before the runs
-    cfg = dict(CASES[case], **overrides)
-    xcol, ycol = cfg.pop("curve")
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    scene = build(case, p0=p0, **cfg)
+def _fexdem(report, curves, finals, case, scene, prepared, out, params, p0, backend, workers,
+            address, options, progress, resume, blocks, layout, modulus, xcol, ycol) -> None:
+    """The FE×DEM run of ``run`` into ``report``, ``curves`` and ``finals``."""
     disc = scene.disc
-    report = {"case": case, "scene": cfg, "p0": p0, "prepared": str(prepared), "elements": disc.ne,
-              "element": disc.element, "cells": disc.npoints, "backend": backend, "runs": {}}
-    curves, finals = {}, {}
     t0 = time.perf_counter()
-    modulus = elastic_modulus(prepared)   # first: a cold kernel cache is filled once, here
     cells = make_cells(backend, prepared, disc.npoints, options, workers, address, out / "cells",
                        progress, checkpointed_step(out / "cells") if resume else 0, blocks, layout)
     try:
         mat = DemMaterial(cells, disc, params, p_unit=p0, tangent=TANGENT, modulus=modulus,
                           tangent_tier=params.tier if params.tier in (1, 2) else 2)
-        stress0, state0 = mat.initial()
         outputs = analysis.Outputs(out, f"{case}_dem", curve_axes=(xcol, ycol),
                                    curve_each_step=True)
         if resume:
@@ -242,6 +207,86 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
     report["profile"]["outputs_and_close_s"] = (report["runs"]["dem"]["wall_s"] - startup
                                                 - report["profile"]["stage_s"])
     curves["dem"], finals["dem"] = res, solver.committed
+
+
+def _reference(report, curves, finals, case, scene, cfg, prepared, ref: Path) -> None:
+    """A finished FE×DEM run of the same scene and sample in ``ref`` as the reference of
+    ``run`` (its report, curve and last field checkpoint) into ``report``, ``curves`` and
+    ``finals``."""
+    path = ref / "report.json"
+    if not path.exists():
+        raise FileNotFoundError(f"no finished FE×DEM run in {ref} (its report.json is missing)")
+    old = json.loads(path.read_text())
+    same = {k: (old.get(k), v) for k, v in (("case", case), ("scene", cfg), ("p0", scene.p0))}
+    bad = {k: v for k, v in same.items() if v[0] != v[1]}
+    if bad:
+        raise ValueError(f"reference {ref} is another scene: " + ", ".join(
+            f"{k} {v[0]!r} there, {v[1]!r} here" for k, v in bad.items()))
+    if old["cell_dem"]["c0"] != initial_fields(prepared, 1, 1.0)[1][0, STATE_NAMES.index("c")]:
+        raise ValueError(f"reference {ref} ran cells of another sample (c0 = "
+                         f"{old['cell_dem']['c0']}) than {prepared}")
+    with np.load(ref / "cells" / FE_CHECKPOINT) as z:
+        if abs(float(z["t"]) - 1.0) > 1e-9:
+            raise ValueError(f"reference {ref}: its field checkpoint is at t = {float(z['t'])}, "
+                             f"not at the end of the stage")
+        finals["dem"] = SimpleNamespace(**{k: z[k] for k in ("u", "stress", "state")})
+    with open(ref / f"{case}_dem_curve.csv", newline="") as f:
+        rows = list(csv.reader(f))
+    curves["dem"] = analysis.RunResult(rows[0], [[r[0], *map(float, r[1:])] for r in rows[1:]])
+    for key in ("discs_per_cell", "cell_dem", "newton", "cell_options", "cell_modulus_P0",
+                "profile"):
+        report[key] = old[key]
+    report["runs"]["dem"] = old["runs"]["dem"]
+    report["reference"] = str(ref)
+
+
+def _rel_l2(w: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """sqrt(Σ w |a - b|² / Σ w |b|²) over the quadrature points (weights ``w``)."""
+    a, b = a.reshape(len(w), -1), b.reshape(len(w), -1)
+    return float(np.sqrt(np.sum(w[:, None] * (a - b) ** 2) / np.sum(w[:, None] * b ** 2)))
+
+
+def _mobilized(s: np.ndarray) -> np.ndarray:
+    """R/P per point (docs/theory.md §1)."""
+    return np.hypot(0.5 * (s[:, 0] - s[:, 1]), s[:, 2]) / (-0.5 * (s[:, 0] + s[:, 1]))
+
+
+def field_errors(disc, ref_stress, ref_c, stress, c) -> dict:
+    """Relative L2 errors of stress, R/P and c against the reference (FE×DEM) fields."""
+    w = disc.weights.reshape(-1)
+    return {"stress": _rel_l2(w, stress, ref_stress),
+            "R_over_P": _rel_l2(w, _mobilized(stress), _mobilized(ref_stress)),
+            "c": _rel_l2(w, c, ref_c)}
+
+
+def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1.0,
+        backend: str = "serial", workers: int = 2, address: str | None = None,
+        options: CellOptions = CELL_OPTIONS, progress: bool = True, resume: bool = False,
+        blocks: int | None = None, layout: str = "interleaved", adaptive: float | None = None,
+        reference: str | Path | None = None, **overrides) -> dict:
+    """Run ``case`` three ways (four with ``adaptive``, the tolerance of adaptive FE×DEM;
+    ``reference``: a finished FE×DEM run's directory instead of running it) and write the
+    report (see the module doc); returns it."""
+    if case not in CASES:
+        raise ValueError(f"case {case!r} unknown; accepted {sorted(CASES)}")
+    if adaptive is not None:
+        model_choice(adaptive)               # a bad tolerance fails before the runs
+    cfg = dict(CASES[case], **overrides)
+    xcol, ycol = cfg.pop("curve")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    scene = build(case, p0=p0, **cfg)
+    disc = scene.disc
+    report = {"case": case, "scene": cfg, "p0": p0, "prepared": str(prepared), "elements": disc.ne,
+              "element": disc.element, "cells": disc.npoints, "backend": backend, "runs": {}}
+    curves, finals = {}, {}
+    modulus = elastic_modulus(prepared)   # first: a cold kernel cache is filled once, here
+    stress0, state0 = initial_fields(prepared, disc.npoints, p0)
+    if reference is None:
+        _fexdem(report, curves, finals, case, scene, prepared, out, params, p0, backend, workers,
+                address, options, progress, resume, blocks, layout, modulus, xcol, ycol)
+    else:
+        _reference(report, curves, finals, case, scene, cfg, prepared, Path(reference))
     for tier in (1, 2):
         tmat = TierMaterial(params.replace("regularization", p_ref=p0), tier)
         cols = [STATE_NAMES.index(n) for n in tiers.STATE_NAMES[tier]]
