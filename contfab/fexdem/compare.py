@@ -29,6 +29,10 @@ relative L2 field errors (quadrature-weighted) of the stress, of R/P and of c. T
 cost ratio is the FE×DEM wall time over the tier's (each tier's kernels are loaded or
 compiled by one untimed update first).
 
+``reference`` = the directory of a finished FE×DEM run of the same scene and sample
+(``--reference DIR``) takes that run's curve, last field and report as the FE×DEM run
+instead of running it again (the tiers and the adaptive run are compared with it).
+
 ``resume=True`` (``contfab fexdem ... --resume``) continues an interrupted or killed
 FE×DEM run in ``--out`` from ``cells/`` (same scene and settings): the field and the
 cells restart from the field's last checkpointed step (the cells keep two generations
@@ -157,7 +161,7 @@ def band_of_run(case: str, out: str | Path, nx: int | None = None, ny: int | Non
     return res
 
 
-def _fexdem(report, curves, finals, case, scene, prepared, out, params, p0, backend, workers,
+def _fexdem(report, curves, finals, *, case, scene, prepared, out, params, p0, backend, workers,
             address, options, progress, resume, blocks, layout, modulus, xcol, ycol) -> None:
     """The FE×DEM run of ``run`` into ``report``, ``curves`` and ``finals``."""
     disc = scene.disc
@@ -209,7 +213,7 @@ def _fexdem(report, curves, finals, case, scene, prepared, out, params, p0, back
     curves["dem"], finals["dem"] = res, solver.committed
 
 
-def _reference(report, curves, finals, case, scene, cfg, prepared, ref: Path) -> None:
+def _reference(report, curves, finals, *, case, scene, cfg, prepared, ref: Path) -> None:
     """A finished FE×DEM run of the same scene and sample in ``ref`` as the reference of
     ``run`` (its report, curve and last field checkpoint) into ``report``, ``curves`` and
     ``finals``."""
@@ -283,10 +287,13 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
     modulus = elastic_modulus(prepared)   # first: a cold kernel cache is filled once, here
     stress0, state0 = initial_fields(prepared, disc.npoints, p0)
     if reference is None:
-        _fexdem(report, curves, finals, case, scene, prepared, out, params, p0, backend, workers,
-                address, options, progress, resume, blocks, layout, modulus, xcol, ycol)
+        _fexdem(report, curves, finals, case=case, scene=scene, prepared=prepared, out=out,
+                params=params, p0=p0, backend=backend, workers=workers, address=address,
+                options=options, progress=progress, resume=resume, blocks=blocks,
+                layout=layout, modulus=modulus, xcol=xcol, ycol=ycol)
     else:
-        _reference(report, curves, finals, case, scene, cfg, prepared, Path(reference))
+        _reference(report, curves, finals, case=case, scene=scene, cfg=cfg, prepared=prepared,
+                   ref=Path(reference))
     for tier in (1, 2):
         tmat = TierMaterial(params.replace("regularization", p_ref=p0), tier)
         cols = [STATE_NAMES.index(n) for n in tiers.STATE_NAMES[tier]]
