@@ -339,6 +339,10 @@ def _add_fexdem(p: argparse.ArgumentParser) -> None:
                    help="also run adaptive FE×DEM: at each point the cheapest model whose "
                         "measured R/P error bound meets TOL, a DEM cell where none does "
                         "(compared with the full FE×DEM run)")
+    p.add_argument("--shadows", type=int, default=0, metavar="K",
+                   help="with --adaptive: K model points also run a shadow DEM cell (one run "
+                        "per step); once the model's RMS R/P error there exceeds TOL, every "
+                        "point switches to a cell (default 0: trust the measured bounds)")
 
 
 def _run_fexdem(args) -> None:
@@ -374,7 +378,8 @@ def _run_fexdem(args) -> None:
     report = run(args.case, str(sample), args.out, params, p0=args.p0, backend=args.backend,
                  workers=args.workers, address=args.address, options=options,
                  resume=args.resume, blocks=args.blocks, layout=args.layout,
-                 adaptive=args.adaptive, reference=args.reference, **extra)
+                 adaptive=args.adaptive, reference=args.reference, shadows=args.shadows,
+                 **extra)
     print(f"{args.case}: {report['cells']} DEM cells of {report['discs_per_cell']} discs, "
           f"{report['elements']} {report['element']} elements"
           + (f", FE×DEM resumed at t = {report['resumed_from_t']:.4g}" if args.resume else ""))

@@ -138,3 +138,36 @@ def test_adaptive_against_a_finished_reference_run(small, tmp_path):
     with pytest.raises(ValueError, match="another scene: scene"):
         compare.run("biaxial", small, tmp_path / "other", default_params(), progress=False,
                     adaptive=0.01, reference=tmp_path / "ref", **dict(kw, strain=1e-3))
+
+
+def test_a_shadow_cell_that_contradicts_the_bound_sends_every_point_to_a_cell(small):
+    """Shadow cells measure the model's R/P error on the scene's own cells: after one step of
+    compression the tier-1 R/P differs from a stand-alone DEM run of the same path by more
+    than the tolerance (computed here), so every point switches to its cell; the next steps
+    follow that DEM path."""
+    scene = build("shear", nx=1, ny=1)
+    tol = 0.05
+    mat = AdaptiveMaterial(small, scene.disc, default_params(), tol, NO_RELAX, table=TABLE,
+                           modulus=1000.0, shadows=2)
+    stress, state = mat.initial()
+    n = len(stress)
+    de = np.array([0.0, -5e-4, 0.0])
+    ratio = lambda s: np.hypot(0.5 * (s[0] - s[1]), s[2]) / (-0.5 * (s[0] + s[1]))
+    for step in (1, 2, 3):
+        res = mat.update(stress, state, np.tile(de, (n, 1)), np.zeros(n))
+        model = res.stress[0].copy()
+        accepted = SimpleNamespace(stress=res.stress, state=res.state, status=res.status,
+                                   tangent=res.tangent, spin_tangent=np.zeros((n, 3)))
+        switched = mat.commit(accepted, step, stress)
+        ref, _ = _standalone(small, [(de, 0.0)] * step)
+        if step == 1:
+            error = abs(ratio(model) - ratio(ref))
+            assert error > tol
+            assert switched.tolist() == list(range(n))
+            shadows = mat.report()["shadows"]
+            assert shadows["model_rejected_at_step"] == 1
+            np.testing.assert_allclose(shadows["rms_R_over_P_error"], error, rtol=1e-12)
+        else:
+            assert len(switched) == 0
+            np.testing.assert_allclose(accepted.stress, np.tile(ref, (n, 1)), rtol=0, atol=1e-12)
+        stress, state = accepted.stress.copy(), accepted.state.copy()

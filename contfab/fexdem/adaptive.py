@@ -13,6 +13,13 @@ the DEM of each model, and its cost). The model points run one model, :func:`mod
   tolerance and **switches to a DEM cell** for the rest of the analysis;
 * if no model meets it for monotonic loading, every point is a DEM cell (FE×DEM).
 
+**Shadow cells** (``shadows`` = k > 0) check the bound on the scene's own cells: k model
+points spread over the mesh also drive a cell through their committed increments, one cell
+run per converged step (no probes, no Newton iterations); its stress does not enter the
+analysis. Once the RMS over the steps so far of |R/P_model - R/P_cell| at a shadow exceeds
+the tolerance, the measured bound is taken as not holding for these cells, and every model
+point switches to a cell (``model_rejected_at_step``).
+
 Tier 1 at least: the points report c. The indicators are updated after every converged
 step, the switches made then, so a point runs its model through the step in which it
 entered the reversal class.
@@ -87,7 +94,10 @@ class AdaptiveMaterial:
 
     def __init__(self, prepared: str, disc, params: Params, tolerance: float,
                  options: CellOptions, p_unit: float = 1.0, probe: float = DEM_PROBE,
-                 modulus: float | None = None, table=None):
+                 modulus: float | None = None, table=None, shadows: int = 0):
+        if not (isinstance(shadows, (int, np.integer)) and 0 <= shadows <= disc.npoints):
+            raise ValueError(f"shadows = {shadows} out of range; accepted integers 0 .. "
+                             f"{disc.npoints} (the points)")
         if not (np.isfinite(p_unit) and p_unit > 0):
             raise ValueError(f"p_unit = {p_unit} out of range; accepted (0, inf) (stress per P0)")
         if not (np.isfinite(probe) and probe > 0):
@@ -111,9 +121,15 @@ class AdaptiveMaterial:
         self.failures: list[str] = []
         self.last = None
         self._inc = None
-        self.cpu = {"model": 0.0, "cells": 0.0, "switch": 0.0}
+        self.cpu = {"model": 0.0, "cells": 0.0, "switch": 0.0, "shadows": 0.0}
         self.cell_runs = 0
         self.model_updates = 0
+        self.shadow_ids = (np.unique(np.linspace(0, n - 1, shadows).round().astype(np.int64))
+                           if shadows and self.choice is not None else np.zeros(0, np.int64))
+        self.shadows = CellRegistry(prepared, self.shadow_ids, options)
+        self.shadow_sq = np.zeros(len(self.shadow_ids))
+        self.shadow_steps = 0
+        self.rejected_at: int | None = None
         if self.choice is None:
             self.registry.add(range(n), [()] * n, 0)
             self.is_cell[:] = True
@@ -183,12 +199,40 @@ class AdaptiveMaterial:
         self.history.append((dstrain.copy(), dspin.copy()))
         c = accepted.state[:, STATE_NAMES.index("c")]
         self.tracker.update(stress_n, accepted.stress, dstrain, accepted.status >= 1, c)
-        if not self.switching:
+        if self._shadow_rejects(accepted, fe_step):
+            new = np.flatnonzero(~self.is_cell)
+        elif not self.switching:
             return np.zeros(0, np.int64)
-        new = np.flatnonzero(self.tracker.reversal_class() & ~self.is_cell)
+        else:
+            new = np.flatnonzero(self.tracker.reversal_class() & ~self.is_cell)
         if len(new):
             self._switch(new, accepted, fe_step)
         return new
+
+    def _shadow_rejects(self, accepted, fe_step: int) -> bool:
+        """Advance the shadow cells by their points' committed increments; True when a
+        shadow's RMS R/P error of the model over the steps so far exceeds the tolerance
+        (module doc), the first time."""
+        live = ~self.is_cell[self.shadow_ids]
+        if self.rejected_at is not None or not live.any():
+            return False
+        ids = self.shadow_ids
+        dstrain, dspin = self._inc
+        cpu0 = time.process_time()
+        res = self.shadows.trial(ids, dstrain[ids], dspin[ids])
+        self.shadows.commit(fe_step)
+        self.cpu["shadows"] += time.process_time() - cpu0
+        self.cell_runs += len(ids)
+        if not res["ok"].all():
+            raise RuntimeError(f"shadow cells failed: {res['errors']}")
+        model = _ratio(accepted.stress[ids] / self.p_unit)
+        self.shadow_sq += (model - _ratio(res["stress"])) ** 2
+        self.shadow_steps += 1
+        rms = np.sqrt(self.shadow_sq / self.shadow_steps)
+        if np.any(rms[live] > self.tolerance):
+            self.rejected_at = fe_step
+            return True
+        return False
 
     def _switch(self, points: np.ndarray, accepted, fe_step: int) -> None:
         histories = [[(de[k], dw[k]) for de, dw in self.history] for k in points]
@@ -225,10 +269,20 @@ class AdaptiveMaterial:
                 "cell_points": int(self.is_cell.sum()), "cell_share": float(self.is_cell.mean()),
                 "model_updates": self.model_updates, "cell_runs": self.cell_runs,
                 "cpu_s": dict(self.cpu),
+                "shadows": {"points": self.shadow_ids.tolist(), "steps": self.shadow_steps,
+                            "rms_R_over_P_error": (np.sqrt(self.shadow_sq / self.shadow_steps)
+                                                   .tolist() if self.shadow_steps else []),
+                            "model_rejected_at_step": self.rejected_at},
                 "switch_mismatch_max": {k: (max(v) if v else None) for k, v in gap.items()},
                 "switch_mismatch_mean": {k: (float(np.mean(v)) if v else None)
                                          for k, v in gap.items()},
                 "switches": sw}
+
+
+def _ratio(stress: np.ndarray) -> np.ndarray:
+    """R/P of Voigt stresses (k, 3), tension positive."""
+    p = -0.5 * (stress[:, 0] + stress[:, 1])
+    return np.hypot(0.5 * (stress[:, 0] - stress[:, 1]), stress[:, 2]) / p
 
 
 def _summary(stress: np.ndarray, state: np.ndarray, cols: int) -> dict:

@@ -267,14 +267,17 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
         backend: str = "serial", workers: int = 2, address: str | None = None,
         options: CellOptions = CELL_OPTIONS, progress: bool = True, resume: bool = False,
         blocks: int | None = None, layout: str = "interleaved", adaptive: float | None = None,
-        reference: str | Path | None = None, **overrides) -> dict:
+        reference: str | Path | None = None, shadows: int = 0, **overrides) -> dict:
     """Run ``case`` three ways (four with ``adaptive``, the tolerance of adaptive FE×DEM;
-    ``reference``: a finished FE×DEM run's directory instead of running it) and write the
-    report (see the module doc); returns it."""
+    ``shadows``: its shadow cells; ``reference``: a finished FE×DEM run's directory instead
+    of running it) and write the report (see the module doc); returns it."""
     if case not in CASES:
         raise ValueError(f"case {case!r} unknown; accepted {sorted(CASES)}")
     if adaptive is not None:
         model_choice(adaptive)               # a bad tolerance fails before the runs
+    if not (isinstance(shadows, int) and shadows >= 0) or (shadows and adaptive is None):
+        raise ValueError(f"shadows = {shadows!r} out of range; accepted integers >= 0, "
+                         f"> 0 only with adaptive")
     cfg = dict(CASES[case], **overrides)
     xcol, ycol = cfg.pop("curve")
     out = Path(out)
@@ -307,7 +310,7 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
                  disc, xcol, ycol)
     if adaptive is not None:
         amat = AdaptiveMaterial(prepared, disc, params, adaptive, options, p_unit=p0,
-                                modulus=modulus)
+                                modulus=modulus, shadows=shadows)
         amat.update(stress0, state0, np.zeros((disc.npoints, 3)),
                     np.zeros(disc.npoints))                          # JIT, untimed
         t0 = time.perf_counter()
