@@ -412,8 +412,9 @@ def _run_fexdem_band(args) -> None:
     res = band_of_run(args.case, args.out, args.nx, args.ny)
     print(f"{args.case} at t = {res['t']:.4g} (step {res['step']}): shear strain contrast "
           f"{res['contrast']:.3g}, top-10 % ratio {res['peak_ratio']:.3g}, half of it on "
-          f"{100 * res['half_area']:.1f} % of the area, band at {res['angle_deg']:.1f}° "
-          f"(elongation {res['elongation']:.2g})")
+          f"{100 * res['half_area']:.1f} % of the area; strongest strip at {res['angle_deg']:.0f}° "
+          f"from x, offset {res['offset']:.3g} from the centre, holding "
+          f"{100 * res['band_share']:.0f} % of the excess shear")
     print(f"written {res['json']} and {res['figure']}")
 
 
