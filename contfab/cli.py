@@ -335,6 +335,18 @@ def _add_fexdem(p: argparse.ArgumentParser) -> None:
     p.add_argument("--resume", action="store_true",
                    help="continue an interrupted run in OUT from its checkpoints (OUT/cells; "
                         "same case and settings), then run the tiers")
+    p.add_argument("--reference", default=None, metavar="DIR",
+                   help="a finished FE×DEM run of the same scene and sample (its --out): "
+                        "compare the tiers and --adaptive with it instead of running FE×DEM "
+                        "again (default --sample: that run's)")
+    p.add_argument("--adaptive", type=float, default=None, metavar="TOL",
+                   help="also run adaptive FE×DEM: at each point the cheapest model whose "
+                        "measured R/P error bound meets TOL, a DEM cell where none does "
+                        "(compared with the full FE×DEM run)")
+    p.add_argument("--shadows", type=int, default=0, metavar="K",
+                   help="with --adaptive: K model points also run a shadow DEM cell (one run "
+                        "per step); once the model's RMS R/P error there exceeds TOL, every "
+                        "point switches to a cell (default 0: trust the measured bounds)")
 
 
 def _run_fexdem(args) -> None:
@@ -345,7 +357,16 @@ def _run_fexdem(args) -> None:
     from contfab.params import default_params, load_params
     from dem.job import Settings, prepare_job
 
+    if args.adaptive is not None:
+        from contfab.fexdem.adaptive import model_choice
+        model_choice(args.adaptive)         # a bad tolerance fails before any work
     sample = args.sample
+    if sample is None and args.reference is not None:
+        import json
+        ref = Path(args.reference) / "report.json"
+        if not ref.exists():
+            raise FileNotFoundError(f"--reference: no finished FE×DEM run ({ref} is missing)")
+        sample = json.loads(ref.read_text())["prepared"]
     if sample is None and args.resume:
         sample = Path(args.out) / "prepared.npz"
         if not sample.exists():
@@ -360,7 +381,9 @@ def _run_fexdem(args) -> None:
     options = CELL_OPTIONS if args.relax is None else CellOptions(force_tol=args.relax)
     report = run(args.case, str(sample), args.out, params, p0=args.p0, backend=args.backend,
                  workers=args.workers, address=args.address, options=options,
-                 resume=args.resume, blocks=args.blocks, layout=args.layout, **extra)
+                 resume=args.resume, blocks=args.blocks, layout=args.layout,
+                 adaptive=args.adaptive, reference=args.reference, shadows=args.shadows,
+                 **extra)
     print(f"{args.case}: {report['cells']} DEM cells of {report['discs_per_cell']} discs, "
           f"{report['elements']} {report['element']} elements"
           + (f", FE×DEM resumed at t = {report['resumed_from_t']:.4g}" if args.resume else ""))
@@ -371,7 +394,32 @@ def _run_fexdem(args) -> None:
                                        f"{err['cost_ratio_dem_over_tier']:.3g}")
         print(f"  {name:>6}: {r['wall_s']:.1f} s, {r['steps']} steps, {r['newton_iterations']} "
               f"Newton iterations{tail}")
+    if args.adaptive is not None:
+        a = report["adaptive"]
+        print(f"  adaptive: {a['cell_points']} of {a['points']} points ended as DEM cells, "
+              f"CPU {a['cost_ratio_cpu_adaptive_over_dem']:.3g} of the FE×DEM cells'")
     print(f"report written to {report['report']}, overlay {report['overlay']}")
+
+
+def _add_fexdem_band(p: argparse.ArgumentParser) -> None:
+    from contfab.fexdem.compare import CASES
+
+    p.add_argument("case", choices=sorted(CASES), help="the run's scene")
+    p.add_argument("--out", required=True, help="the run's output directory (its cells/)")
+    p.add_argument("--nx", type=int, default=None, help="the run's elements across")
+    p.add_argument("--ny", type=int, default=None, help="the run's elements up")
+
+
+def _run_fexdem_band(args) -> None:
+    from contfab.fexdem.compare import band_of_run
+
+    res = band_of_run(args.case, args.out, args.nx, args.ny)
+    print(f"{args.case} at t = {res['t']:.4g} (step {res['step']}): shear strain contrast "
+          f"{res['contrast']:.3g}, top-10 % ratio {res['peak_ratio']:.3g}, half of it on "
+          f"{100 * res['half_area']:.1f} % of the area; strongest strip at {res['angle_deg']:.0f}° "
+          f"from x, offset {res['offset']:.3g} from the centre, holding "
+          f"{100 * res['band_share']:.0f} % of the excess shear")
+    print(f"written {res['json']} and {res['figure']}")
 
 
 # --------------------------------------------------------------------------- bench
@@ -451,6 +499,8 @@ COMMANDS = {
     "bench": (_add_bench, _run_bench, "speed and memory benchmarks"),
     "fexdem": (_add_fexdem, _run_fexdem, "FE×DEM: a DEM cell per quadrature point, against "
                                          "tiers 1 and 2 on the same scene"),
+    "fexdem-band": (_add_fexdem_band, _run_fexdem_band, "localization of an FE×DEM run's "
+                    "last checkpointed field: shear strain contrast, band angle, figure"),
     "point": (_add_point, _run_point, "drive one material point along a loading path (CSV, "
                                       "JSON, PNG)"),
     "calibrate": (_add_calibrate, _run_calibrate, "fit the model tiers to a DEM campaign: "

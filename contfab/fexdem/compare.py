@@ -10,15 +10,28 @@ Written into ``--out`` (atomically):
     cells/             the cells' and the FE field's checkpoints of the last converged step
                        (FexdemSolver.resume); the FE×DEM curve CSV is rewritten every step
     overlay.png        the load-displacement curves of the three runs
+    <case>_dem_band.png  the FE×DEM shear strain γ at the end (contfab.fexdem.band; every
+                       run's localization measures are in the report, "band")
     report.json        settings, N per cell, cells, wall times, Newton figures, errors, costs,
                        "profile": where the FE×DEM time went and the cost model's T(W)
     profile.npz        the per-call, per-cell timings behind it (contfab.fexdem.profile.load)
 
-Errors of a tier against FE×DEM: the curve error max|y_tier - y_dem| / max|y_dem| with
+With ``adaptive`` = a tolerance (``--adaptive TOL``) the scene runs a fourth time as
+adaptive FE×DEM (:mod:`contfab.fexdem.adaptive`: the cheapest model whose measured R/P
+error bound meets TOL, a DEM cell where none does), written as ``<case>_adaptive*``; the
+report's ``adaptive`` holds the choice, the switched points (the model's and the cell's
+state at each switch) and the CPU of the model updates, the cells and the switches, and
+``cost_ratio_cpu_adaptive_over_dem`` that CPU over the FE×DEM cells' CPU.
+
+Errors of a tier (or of the adaptive run) against FE×DEM: the curve error max|y_tier - y_dem| / max|y_dem| with
 the tier's curve interpolated at the FE×DEM abscissae, and at the end of the stage the
 relative L2 field errors (quadrature-weighted) of the stress, of R/P and of c. The
 cost ratio is the FE×DEM wall time over the tier's (each tier's kernels are loaded or
 compiled by one untimed update first).
+
+``reference`` = the directory of a finished FE×DEM run of the same scene and sample
+(``--reference DIR``) takes that run's curve, last field and report as the FE×DEM run
+instead of running it again (the tiers and the adaptive run are compared with it).
 
 ``resume=True`` (``contfab fexdem ... --resume``) continues an interrupted or killed
 FE×DEM run in ``--out`` from ``cells/`` (same scene and settings): the field and the
@@ -31,7 +44,9 @@ wall time and cost ratios then count the resumed part only (``resumed_from_t``).
 from __future__ import annotations
 
 import csv
+import json
 import time
+from types import SimpleNamespace
 from pathlib import Path
 
 import numpy as np
@@ -40,10 +55,12 @@ from contfab.executor import WORKER_ENV
 from contfab.fem import analysis
 from contfab.fem.material import TierMaterial
 from contfab.fem.solver import NewtonOptions, Solver
+from contfab.fexdem.adaptive import AdaptiveMaterial, AdaptiveSolver, model_choice
+from contfab.fexdem.band import band_figure, localization
 from contfab.fexdem.backends import DaskCells, ProcessCells, SerialCells
 from contfab.fexdem.cell import CellOptions
-from contfab.fexdem.material import (STATE_NAMES, DemMaterial, FexdemSolver, checkpointed_step,
-                                     elastic_modulus)
+from contfab.fexdem.material import (FE_CHECKPOINT, STATE_NAMES, DemMaterial, FexdemSolver,
+                                     checkpointed_step, elastic_modulus, initial_fields)
 from contfab.fexdem.profile import costs
 from contfab.fexdem.scenes import build
 from contfab.models import tiers
@@ -117,49 +134,43 @@ def _rows_before(curve: Path, solver: FexdemSolver, measure) -> list[list]:
     return rows + [[last.stage, t, last.iterations, last.cuts, *measure(solver).values()]]
 
 
-def _rel_l2(w: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
-    """sqrt(Σ w |a - b|² / Σ w |b|²) over the quadrature points (weights ``w``)."""
-    a, b = a.reshape(len(w), -1), b.reshape(len(w), -1)
-    return float(np.sqrt(np.sum(w[:, None] * (a - b) ** 2) / np.sum(w[:, None] * b ** 2)))
-
-
-def _mobilized(s: np.ndarray) -> np.ndarray:
-    """R/P per point (docs/theory.md §1)."""
-    return np.hypot(0.5 * (s[:, 0] - s[:, 1]), s[:, 2]) / (-0.5 * (s[:, 0] + s[:, 1]))
-
-
-def field_errors(disc, ref_stress, ref_c, stress, c) -> dict:
-    """Relative L2 errors of stress, R/P and c against the reference (FE×DEM) fields."""
-    w = disc.weights.reshape(-1)
-    return {"stress": _rel_l2(w, stress, ref_stress),
-            "R_over_P": _rel_l2(w, _mobilized(stress), _mobilized(ref_stress)),
-            "c": _rel_l2(w, c, ref_c)}
-
-
-def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1.0,
-        backend: str = "serial", workers: int = 2, address: str | None = None,
-        options: CellOptions = CELL_OPTIONS, progress: bool = True, resume: bool = False,
-        blocks: int | None = None, layout: str = "interleaved", **overrides) -> dict:
-    """Run ``case`` three ways and write the report (see the module doc); returns it."""
+def band_of_run(case: str, out: str | Path, nx: int | None = None, ny: int | None = None) -> dict:
+    """Localization (:mod:`contfab.fexdem.band`) of the FE×DEM field checkpointed in
+    ``out``/cells (a finished or interrupted run of ``case`` on ``nx`` × ``ny`` elements):
+    its total strain since the start; written to ``out``/band.json and
+    ``out``/<case>_dem_band.png."""
     if case not in CASES:
         raise ValueError(f"case {case!r} unknown; accepted {sorted(CASES)}")
-    cfg = dict(CASES[case], **overrides)
-    xcol, ycol = cfg.pop("curve")
+    cfg = {k: v for k, v in CASES[case].items() if k in ("nx", "ny", "width", "height")}
+    cfg.update({k: v for k, v in (("nx", nx), ("ny", ny)) if v is not None})
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    scene = build(case, p0=p0, **cfg)
+    ck = out / "cells" / FE_CHECKPOINT
+    if not ck.exists():
+        raise FileNotFoundError(f"no FE×DEM field checkpoint {ck}")
+    disc = build(case, **cfg).disc
+    with np.load(ck) as z:
+        u, t, step = z["u"], float(z["t"]), int(z["fe_step"])
+    if len(u) != disc.ndofs:
+        raise ValueError(f"{ck} has {len(u)} DOFs, the {cfg['nx']} x {cfg['ny']} mesh of {case} "
+                         f"{disc.ndofs} (give the run's --nx and --ny)")
+    strain = disc.strain(u)[0]
+    res = {"case": case, "t": t, "step": step, **cfg, **localization(disc, strain)}
+    res["figure"] = str(band_figure(out / f"{case}_dem_band.png", disc, strain,
+                                    f"{case}: FE×DEM shear strain at t = {t:.3g}"))
+    res["json"] = str(write_json(out / "band.json", res))
+    return res
+
+
+def _fexdem(report, curves, finals, *, case, scene, prepared, out, params, p0, backend, workers,
+            address, options, progress, resume, blocks, layout, modulus, xcol, ycol) -> None:
+    """The FE×DEM run of ``run`` into ``report``, ``curves`` and ``finals``."""
     disc = scene.disc
-    report = {"case": case, "scene": cfg, "p0": p0, "prepared": str(prepared), "elements": disc.ne,
-              "element": disc.element, "cells": disc.npoints, "backend": backend, "runs": {}}
-    curves, finals = {}, {}
     t0 = time.perf_counter()
-    modulus = elastic_modulus(prepared)   # first: a cold kernel cache is filled once, here
     cells = make_cells(backend, prepared, disc.npoints, options, workers, address, out / "cells",
                        progress, checkpointed_step(out / "cells") if resume else 0, blocks, layout)
     try:
         mat = DemMaterial(cells, disc, params, p_unit=p0, tangent=TANGENT, modulus=modulus,
                           tangent_tier=params.tier if params.tier in (1, 2) else 2)
-        stress0, state0 = mat.initial()
         outputs = analysis.Outputs(out, f"{case}_dem", curve_axes=(xcol, ycol),
                                    curve_each_step=True)
         if resume:
@@ -192,10 +203,100 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
             if owned is not None:
                 owned.close()
     report["runs"]["dem"] = _summary(res, solver, time.perf_counter() - t0)
+    report["runs"]["dem"]["band"] = localization(disc, disc.strain(solver.committed.u)[0])
+    report["band_figure"] = str(band_figure(out / f"{case}_dem_band.png", disc,
+                                            disc.strain(solver.committed.u)[0],
+                                            f"{case}: FE×DEM shear strain at the end"))
     report["profile"]["startup_s"] = startup    # cells made, kernels loaded (or compiled)
     report["profile"]["outputs_and_close_s"] = (report["runs"]["dem"]["wall_s"] - startup
                                                 - report["profile"]["stage_s"])
     curves["dem"], finals["dem"] = res, solver.committed
+
+
+def _reference(report, curves, finals, *, case, scene, cfg, prepared, ref: Path) -> None:
+    """A finished FE×DEM run of the same scene and sample in ``ref`` as the reference of
+    ``run`` (its report, curve and last field checkpoint) into ``report``, ``curves`` and
+    ``finals``."""
+    path = ref / "report.json"
+    if not path.exists():
+        raise FileNotFoundError(f"no finished FE×DEM run in {ref} (its report.json is missing)")
+    old = json.loads(path.read_text())
+    same = {k: (old.get(k), v) for k, v in (("case", case), ("scene", cfg), ("p0", scene.p0))}
+    bad = {k: v for k, v in same.items() if v[0] != v[1]}
+    if bad:
+        raise ValueError(f"reference {ref} is another scene: " + ", ".join(
+            f"{k} {v[0]!r} there, {v[1]!r} here" for k, v in bad.items()))
+    if old["cell_dem"]["c0"] != initial_fields(prepared, 1, 1.0)[1][0, STATE_NAMES.index("c")]:
+        raise ValueError(f"reference {ref} ran cells of another sample (c0 = "
+                         f"{old['cell_dem']['c0']}) than {prepared}")
+    with np.load(ref / "cells" / FE_CHECKPOINT) as z:
+        if abs(float(z["t"]) - 1.0) > 1e-9:
+            raise ValueError(f"reference {ref}: its field checkpoint is at t = {float(z['t'])}, "
+                             f"not at the end of the stage")
+        finals["dem"] = SimpleNamespace(**{k: z[k] for k in ("u", "stress", "state")})
+    with open(ref / f"{case}_dem_curve.csv", newline="") as f:
+        rows = list(csv.reader(f))
+    curves["dem"] = analysis.RunResult(rows[0], [[r[0], *map(float, r[1:])] for r in rows[1:]])
+    for key in ("discs_per_cell", "cell_dem", "newton", "cell_options", "cell_modulus_P0",
+                "profile"):
+        report[key] = old[key]
+    report["runs"]["dem"] = old["runs"]["dem"]
+    report["reference"] = str(ref)
+
+
+def _rel_l2(w: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """sqrt(Σ w |a - b|² / Σ w |b|²) over the quadrature points (weights ``w``)."""
+    a, b = a.reshape(len(w), -1), b.reshape(len(w), -1)
+    return float(np.sqrt(np.sum(w[:, None] * (a - b) ** 2) / np.sum(w[:, None] * b ** 2)))
+
+
+def _mobilized(s: np.ndarray) -> np.ndarray:
+    """R/P per point (docs/theory.md §1)."""
+    return np.hypot(0.5 * (s[:, 0] - s[:, 1]), s[:, 2]) / (-0.5 * (s[:, 0] + s[:, 1]))
+
+
+def field_errors(disc, ref_stress, ref_c, stress, c) -> dict:
+    """Relative L2 errors of stress, R/P and c against the reference (FE×DEM) fields."""
+    w = disc.weights.reshape(-1)
+    return {"stress": _rel_l2(w, stress, ref_stress),
+            "R_over_P": _rel_l2(w, _mobilized(stress), _mobilized(ref_stress)),
+            "c": _rel_l2(w, c, ref_c)}
+
+
+def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1.0,
+        backend: str = "serial", workers: int = 2, address: str | None = None,
+        options: CellOptions = CELL_OPTIONS, progress: bool = True, resume: bool = False,
+        blocks: int | None = None, layout: str = "interleaved", adaptive: float | None = None,
+        reference: str | Path | None = None, shadows: int = 0, **overrides) -> dict:
+    """Run ``case`` three ways (four with ``adaptive``, the tolerance of adaptive FE×DEM;
+    ``shadows``: its shadow cells; ``reference``: a finished FE×DEM run's directory instead
+    of running it) and write the report (see the module doc); returns it."""
+    if case not in CASES:
+        raise ValueError(f"case {case!r} unknown; accepted {sorted(CASES)}")
+    if adaptive is not None:
+        model_choice(adaptive)               # a bad tolerance fails before the runs
+    if not (isinstance(shadows, int) and shadows >= 0) or (shadows and adaptive is None):
+        raise ValueError(f"shadows = {shadows!r} out of range; accepted integers >= 0, "
+                         f"> 0 only with adaptive")
+    cfg = dict(CASES[case], **overrides)
+    xcol, ycol = cfg.pop("curve")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    scene = build(case, p0=p0, **cfg)
+    disc = scene.disc
+    report = {"case": case, "scene": cfg, "p0": p0, "prepared": str(prepared), "elements": disc.ne,
+              "element": disc.element, "cells": disc.npoints, "backend": backend, "runs": {}}
+    curves, finals = {}, {}
+    modulus = elastic_modulus(prepared)   # first: a cold kernel cache is filled once, here
+    stress0, state0 = initial_fields(prepared, disc.npoints, p0)
+    if reference is None:
+        _fexdem(report, curves, finals, case=case, scene=scene, prepared=prepared, out=out,
+                params=params, p0=p0, backend=backend, workers=workers, address=address,
+                options=options, progress=progress, resume=resume, blocks=blocks,
+                layout=layout, modulus=modulus, xcol=xcol, ycol=ycol)
+    else:
+        _reference(report, curves, finals, case=case, scene=scene, cfg=cfg, prepared=prepared,
+                   ref=Path(reference))
     for tier in (1, 2):
         tmat = TierMaterial(params.replace("regularization", p_ref=p0), tier)
         cols = [STATE_NAMES.index(n) for n in tiers.STATE_NAMES[tier]]
@@ -205,20 +306,44 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
         tres = analysis.run(tsolver, [scene.stage], scene.measure,
                             analysis.Outputs(out, f"{case}_tier{tier}", curve_axes=(xcol, ycol)),
                             progress)
-        name = f"tier{tier}"
-        report["runs"][name] = _summary(tres, tsolver, time.perf_counter() - t0)
-        curves[name], finals[name] = tres, tsolver.committed
-        x, y = curves["dem"].column(xcol), curves["dem"].column(ycol)
-        yt = np.interp(x, tres.column(xcol), tres.column(ycol))
-        ref, fin = finals["dem"], tsolver.committed
-        report["runs"][name]["errors"] = {
-            "curve": float(np.max(np.abs(yt - y)) / np.max(np.abs(y))),
-            "fields": field_errors(disc, ref.stress, ref.state[:, STATE_NAMES.index("c")],
-                                   fin.stress, fin.state[:, tiers.STATE_NAMES[tier].index("c")]),
-            "cost_ratio_dem_over_tier": report["runs"]["dem"]["wall_s"] / report["runs"][name]["wall_s"]}
+        _compare(report, f"tier{tier}", tres, tsolver, time.perf_counter() - t0, curves, finals,
+                 disc, xcol, ycol)
+    if adaptive is not None:
+        amat = AdaptiveMaterial(prepared, disc, params, adaptive, options, p_unit=p0,
+                                modulus=modulus, shadows=shadows)
+        amat.update(stress0, state0, np.zeros((disc.npoints, 3)),
+                    np.zeros(disc.npoints))                          # JIT, untimed
+        t0 = time.perf_counter()
+        asolver = AdaptiveSolver(disc, amat, DEM_NEWTON)
+        ares = analysis.run(asolver, [scene.stage], scene.measure,
+                            analysis.Outputs(out, f"{case}_adaptive", curve_axes=(xcol, ycol),
+                                             curve_each_step=True), progress)
+        _compare(report, "adaptive", ares, asolver, time.perf_counter() - t0, curves, finals,
+                 disc, xcol, ycol)
+        report["adaptive"] = amat.report()
+        dem_cpu = report["profile"]["trials"]["cell_cpu_s"]
+        report["adaptive"]["cost_ratio_cpu_adaptive_over_dem"] = (
+            sum(amat.cpu.values()) / dem_cpu if dem_cpu > 0 else None)
     report["overlay"] = str(_overlay(out / "overlay.png", curves, xcol, ycol, case))
     report["report"] = str(write_json(out / "report.json", report))
     return report
+
+
+def _compare(report: dict, name: str, res, solver, wall: float, curves: dict, finals: dict,
+             disc, xcol: str, ycol: str) -> None:
+    """Run ``name``'s summary and its errors and cost ratio against FE×DEM into ``report``."""
+    report["runs"][name] = _summary(res, solver, wall)
+    report["runs"][name]["band"] = localization(disc, disc.strain(solver.committed.u)[0])
+    curves[name], finals[name] = res, solver.committed
+    x, y = curves["dem"].column(xcol), curves["dem"].column(ycol)
+    yt = np.interp(x, res.column(xcol), res.column(ycol))
+    ref, fin = finals["dem"], solver.committed
+    names = solver.material.state_names
+    report["runs"][name]["errors"] = {
+        "curve": float(np.max(np.abs(yt - y)) / np.max(np.abs(y))),
+        "fields": field_errors(disc, ref.stress, ref.state[:, STATE_NAMES.index("c")],
+                               fin.stress, fin.state[:, names.index("c")]),
+        "cost_ratio_dem_over_tier": report["runs"]["dem"]["wall_s"] / wall}
 
 
 def _summary(res, solver, wall: float) -> dict:
@@ -239,7 +364,8 @@ def _overlay(path: Path, curves: dict, xcol: str, ycol: str, case: str) -> Path:
     fig, ax = plt.subplots(figsize=(6, 4))
     for name, res in curves.items():
         ax.plot(res.column(xcol), res.column(ycol), "o-" if name == "dem" else "-", ms=3,
-                label="FE×DEM" if name == "dem" else name.replace("tier", "tier "))
+                label={"dem": "FE×DEM", "adaptive": "adaptive FE×DEM"}.get(
+                    name, name.replace("tier", "tier ")))
     ax.set_xlabel(xcol)
     ax.set_ylabel(f"{ycol} (stress unit p0)")
     ax.set_title(f"{case}: FE×DEM and the model tiers")

@@ -73,6 +73,14 @@ def elastic_modulus(prepared: str) -> float:
     return float((res.stress[0] - s0[0]) / -PROBE_STRAIN)
 
 
+def initial_fields(prepared: str, n: int, p_unit: float) -> tuple[np.ndarray, np.ndarray]:
+    """(stress (n, 3) times ``p_unit``, state (n, 5): gp = 0, c, A, Bc, Bs) of the prepared
+    sample at ``n`` points."""
+    state, dyn, _, _ = checkpoint.load(prepared)
+    stress, cell_state = measure_cell(start_cell(state, dyn))
+    return (np.tile(stress * p_unit, (n, 1)), np.tile(np.concatenate([[0.0], cell_state]), (n, 1)))
+
+
 class DemMaterial:
     """DEM cells at the points of ``disc`` run by ``cells`` (see the module doc)."""
 
@@ -105,11 +113,7 @@ class DemMaterial:
 
     def initial(self) -> tuple[np.ndarray, np.ndarray]:
         """(stress (n, 3), state (n, 5)) of the prepared sample at every point."""
-        state, dyn, _, _ = checkpoint.load(self.cells.prepared)
-        stress, cell_state = measure_cell(start_cell(state, dyn))
-        n = self.disc.npoints
-        return (np.tile(stress * self.p_unit, (n, 1)),
-                np.tile(np.concatenate([[0.0], cell_state]), (n, 1)))
+        return initial_fields(self.cells.prepared, self.disc.npoints, self.p_unit)
 
     def where(self, k: int) -> str:
         """Element, quadrature point and position of point ``k`` (for messages)."""

@@ -19,6 +19,12 @@ With ``probe`` > 0, :meth:`trial` also returns each cell's own tangent at its in
 (:func:`~contfab.fexdem.cell.cell_tangent`, three more runs per cell; NaN where a probe
 fails, the caller then falls back to another tangent).
 
+:meth:`add` makes cells that start later than the analysis (adaptive FE×DEM,
+:mod:`contfab.fexdem.adaptive`): each is a clone of the prepared sample driven through a
+given history of committed increments, one :func:`~contfab.fexdem.cell.advance_cell` per
+increment, i.e. bitwise the cell a point would hold had it been a DEM cell from the start
+with that history.
+
 A cell that fails (no equilibrium within its budget, a DEM divergence) reports its
 message instead of a stress; the caller turns it into a failed point.
 """
@@ -32,7 +38,7 @@ import numpy as np
 from dem import checkpoint
 from dem.integrator import DivergenceError
 from contfab.fexdem.cell import (CELL_STATE, CellNotRelaxed, CellOptions, IncrementTooLarge,
-                                 advance_cell, cell_tangent, start_cell)
+                                 advance_cell, cell_tangent, measure_cell, start_cell)
 
 
 def cell_file(ckdir: str | Path, cell: int, fe_step: int) -> Path:
@@ -49,6 +55,7 @@ class CellRegistry:
         self.options = options
         self.ckdir = ckdir
         state, self.dyn, _, _ = checkpoint.load(prepared)
+        self.sample = state
         if resume and ckdir is None:
             raise ValueError(f"resume from step {resume} needs a checkpoint directory")
         self.committed, self.step = {}, {}
@@ -109,6 +116,38 @@ class CellRegistry:
                                                  res.stress, self.options, probe)
             except (CellNotRelaxed, IncrementTooLarge, DivergenceError):
                 out["tangent"][j] = np.nan
+
+    def add(self, ids, histories, fe_step: int) -> dict:
+        """New cells ``ids`` (not yet held), each the prepared sample driven through its
+        history: a sequence of (dstrain (3,), dspin) committed increments (module doc),
+        the last that of converged step ``fe_step``.
+
+        Returns arrays over ``ids`` as :meth:`trial` (``stress``, ``state``, ``steps``,
+        ``cpu``; no tangent); a cell that fails is not added and raises its error.
+        """
+        k = len(ids)
+        out = {"stress": np.zeros((k, 3)), "state": np.zeros((k, len(CELL_STATE))),
+               "steps": np.zeros((k, 2), np.int64), "cpu": np.zeros(k)}
+        for j, (i, history) in enumerate(zip(ids, histories)):
+            i = int(i)
+            if i in self.committed:
+                raise ValueError(f"cell {i} is already held")
+            cpu0 = time.thread_time()
+            st = start_cell(self.sample.copy(), self.dyn)
+            res = None
+            for dstrain, dspin in history:
+                res = advance_cell(st, self.dyn, dstrain, float(dspin), self.options)
+                out["steps"][j] += (res.strain_steps, res.relax_steps)
+            if res is None:
+                res_stress, res_state = measure_cell(st)
+            else:
+                res_stress, res_state = res.stress, res.state
+            out["stress"][j], out["state"][j] = res_stress, res_state
+            out["cpu"][j] = time.thread_time() - cpu0
+            self.committed[i] = st
+            self.step[i] = fe_step
+            self.ids.append(i)
+        return out
 
     def commit(self, fe_step: int) -> dict:
         """Promote every cell's latest trial and checkpoint it as step ``fe_step``; returns
