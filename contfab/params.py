@@ -90,7 +90,7 @@ class Section:
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise ParamError(f"{where} = {value!r} is not a number (accepted range {accepted})")
             value = float(value)
-            if not math.isfinite(value) or value not in f.metadata["range"]:
+            if math.isnan(value) or value not in f.metadata["range"]:
                 raise ParamError(f"{where} = {value:g} is outside the accepted range {accepted} "
                                  f"({f.metadata['doc']})")
             object.__setattr__(self, f.name, value)
@@ -158,6 +158,8 @@ K_O = 13
 A_CRIT = 14           # relaxation law: A_c = z_c/pi, b_c = B_c/A_c, rate k per unit plastic shear
 B_RATIO_CRIT = 15
 RELAX_RATE = 16
+FABRIC_SPEED = 17     # relaxation law: largest speed v of the anisotropy (inf: exponential)
+FABRIC_DILATION = 18  # relaxation law: acceleration beta of the rate by dilation
 
 
 # --------------------------------------------------------------------------- sections
@@ -303,6 +305,13 @@ class Tier2(Section):
                                 "critical anisotropy b_c = B/A", default=0.25)
     relax_rate: float = param("per unit plastic shear strain", Range(0.0, math.inf, lo_closed=True),
                               "relaxation law: rate k", default=13.0)
+    fabric_speed: float = param("per unit plastic shear strain",
+                                Range(0.0, math.inf, hi_closed=True),
+                                "relaxation law: largest speed v of B/A_c toward its target "
+                                "(inf: exponential relaxation at rate k)", default=math.inf)
+    fabric_dilation: float = param("-", Range(0.0, math.inf, lo_closed=True),
+                                   "relaxation law: the rate times 1 + beta tr(dep)/dgamma_s "
+                                   "while dilating", default=0.0)
 
     def to_dict(self) -> dict:
         """As :meth:`Section.to_dict`, with ``fabric_law`` by name."""
@@ -352,7 +361,8 @@ class Tier2(Section):
                 FABRIC_LAW: self.fabric_law,
                 KAPPA_A: self.kappa_a, K_C: self.k_c, K_O: self.k_o,
                 A_CRIT: self.z_crit / math.pi, B_RATIO_CRIT: self.b_ratio_crit,
-                RELAX_RATE: self.relax_rate}
+                RELAX_RATE: self.relax_rate, FABRIC_SPEED: self.fabric_speed,
+                FABRIC_DILATION: self.fabric_dilation}
 
 
 @dataclass(frozen=True)

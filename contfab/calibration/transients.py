@@ -21,8 +21,25 @@ stage, γ in simple shear):
   (:func:`contfab.calibration.curves.errors`).
 
 ``contfab transients RUN_DIR... --out DIR`` writes ``transients.csv`` / ``.md`` (one row
-per path, density, figure and source) and ``transients.json``, and an overlay figure per
-path (R/P, c, B against the grid's abscissa).
+per path, density and figure, a column per source) and ``transients.json``, an overlay
+figure per path (R/P, ε_v, c, A, B, θp against the grid's abscissa), and ``reference/``:
+the DEM's seed-mean curves (:func:`contfab.calibration.curves.curve_table`) with their start
+states and the DEM's figures in ``index.json`` (:func:`read_reference` reads them back; the
+tests keep a copy).
+
+**Fit on transients** (``--fit``, :func:`fit_transients`): the fabric parameters of tier 2
+(:data:`FIT_NAMES`, tier 1's fixed) minimize
+
+    J = Σ_paths Σ_figures ((model − DEM) / scale)²
+
+over the figures above: the R/P error after each change (scale 0.03) and over the build-up
+(R/P and B, 0.03), the minimum of R/P after a change (0.03), s_90 (30 % of the DEM's), the
+compaction Δc after a change (0.003), and the residual R/P (0.02), c (0.005), A (0.05) and
+B (0.025):
+the scales are the acceptance bounds, so transients and steady states weigh alike. The
+minimizer is Nelder–Mead (scipy) on the logarithms of the parameters, clipped to
+:data:`FIT_BOUNDS` (the figures are not smooth in the parameters: s_90 and the minimum
+move by grid steps, which a gradient method does not tolerate).
 """
 from __future__ import annotations
 
@@ -34,7 +51,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from contfab.calibration.curves import DemCurve, dem_curve, errors, read_history
+from contfab.calibration.curves import (DemCurve, curve_table, dem_curve, errors, read_curve,
+                                       read_history)
 from contfab.calibration.fitting import Target, run_model
 from contfab.calibration.report import markdown_table, overlay_plot
 from contfab.params import Params
@@ -49,8 +67,9 @@ BUILD_UP = 0.3
 """Strain of the build-up from isotropy."""
 STEADY_FRACTION = 0.3
 """The steady part of a stage: its last fraction of strain."""
-ISOTROPIC_B = 0.02
-"""A path starts isotropic when the DEM's mean start B is below this (1/rad)."""
+ISOTROPIC_RATIO = 0.1
+"""A path starts from isotropy when the DEM's mean start B/A is below this (a prepared
+sample keeps a few per cent of anisotropy)."""
 
 
 def group_runs(run_dirs: Sequence[str | FsPath]) -> dict[tuple[str, str], list[FsPath]]:
@@ -140,7 +159,8 @@ def figures(path_name: str, curve: DemCurve, model: Mapping[str, np.ndarray] | N
             win = g.stage == 1
             out["rotation_rms_theta_p_deg"] = float(np.degrees(_rms(
                 _angle(model["theta_p"][win] - curve.mean["theta_p"][win]))))
-    if model is not None and math.hypot(curve.start["Bc"], curve.start["Bs"]) < ISOTROPIC_B:
+    if (model is not None and math.hypot(curve.start["Bc"], curve.start["Bs"])
+            < ISOTROPIC_RATIO * curve.start["A"]):
         win = (g.stage == 0) & (g.s <= BUILD_UP)
         out["buildup_rms_RP"] = _rms(model["RP"][win] - curve.mean["RP"][win])
         out["buildup_rms_B"] = _rms(model["B"][win] - curve.mean["B"][win])
@@ -152,6 +172,84 @@ def figures(path_name: str, curve: DemCurve, model: Mapping[str, np.ndarray] | N
     return out
 
 
+FIT_NAMES = ("relax_rate", "fabric_speed", "fabric_dilation", "dilatancy_fabric",
+             "b_ratio_crit", "fabric_weight", "z_crit")
+"""The tier-2 parameters fitted on transients (``[tier2]`` names)."""
+FIT_BOUNDS = {"relax_rate": (1.0, 300.0), "fabric_speed": (0.5, 100.0),
+              "fabric_dilation": (1e-3, 100.0), "dilatancy_fabric": (1e-3, 4.0),
+              "b_ratio_crit": (0.15, 0.3), "fabric_weight": (0.3, 0.6), "z_crit": (2.0, 4.0)}
+"""Box of the fit (the upper ones keep m(c) > 0 with phi_min_deg >= 11)."""
+FIT_SCALES = {"change_rms_RP": 0.03, "buildup_rms_RP": 0.03, "buildup_rms_B": 0.03,
+              "RP_min": 0.03, "s_90": 0.3, "dc_max": 0.003, "residual_RP": 0.02,
+              "residual_c": 0.005, "residual_A": 0.05, "residual_B": 0.025}
+"""Scale of each figure in the objective (module doc; s_90's is relative to the DEM's)."""
+
+
+def objective_terms(rows: Sequence[Mapping], source: str = "tier 2") -> list[tuple[str, float]]:
+    """(label, scaled error) of every figure of ``rows`` that enters the fit's objective
+    (module doc); a figure the model did not reach counts 10."""
+    out = []
+    for r in rows:
+        fig, model, dem = r["figure"], r[source], r["DEM"]
+        label = f"{r['path']} {r['density']} {fig}"
+        kind = fig.split("_", 1)[1] if fig.startswith("change") else fig
+        if fig.startswith("change") and kind == "rms_RP":
+            e = model / FIT_SCALES["change_rms_RP"]
+        elif r["path"] == "biaxial" and fig.startswith("change"):
+            continue                      # biaxial has no change of loading
+        elif kind in ("RP_min", "dc_max"):
+            e = (model - dem) / FIT_SCALES[kind]
+        elif kind == "s_90":
+            e = (model - dem) / (FIT_SCALES[kind] * dem)
+        elif kind in FIT_SCALES:
+            e = model / FIT_SCALES[kind]
+        else:
+            continue
+        out.append((label, float(e) if math.isfinite(e) else 10.0))
+    return out
+
+
+def fit_transients(params: Params, run_dirs: Sequence[str | FsPath], max_nfev: int = 150,
+                   progress=None) -> tuple[Params, dict]:
+    """Tier 2's :data:`FIT_NAMES` fitted on the runs' figures (module doc), from ``params``.
+    Returns the fitted parameters and a record {start, fitted, objective, evaluations}."""
+    from scipy.optimize import minimize
+
+    lo = np.array([FIT_BOUNDS[n][0] for n in FIT_NAMES])
+    hi = np.array([FIT_BOUNDS[n][1] for n in FIT_NAMES])
+    start = {n: getattr(params.tier2, n) for n in FIT_NAMES}
+    x0 = np.log(np.clip([min(start[n], hi[k]) for k, n in enumerate(FIT_NAMES)], lo, hi))
+    groups = group_runs(run_dirs)
+    curves = {key: (load_path(key[0]), dem_curve(load_path(key[0]),
+                                                 [read_history(d / "history.csv") for d in dirs]))
+              for key, dirs in sorted(groups.items())}
+    count = [0]
+
+    def candidate(u) -> Params:
+        return params.replace("tier2", **dict(zip(FIT_NAMES, map(float, np.clip(np.exp(u), lo, hi)))))
+
+    def objective(u) -> float:
+        p = candidate(u).with_tier(2)
+        rows = []
+        for (path_name, density), (path, curve) in curves.items():
+            sample = run_model(p, 2, Target(f"{path_name}_{density}", path, curve))[0]
+            figs = {"DEM": figures(path_name, curve, None), "tier 2": figures(path_name, curve, sample)}
+            rows += [{"path": path_name, "density": density, "figure": n,
+                      **{src: figs[src].get(n, math.nan) for src in figs}} for n in figs["tier 2"]]
+        j = float(sum(e * e for _, e in objective_terms(rows)))
+        count[0] += 1
+        if progress is not None:
+            progress(count[0], j)
+        return j
+
+    res = minimize(objective, x0, method="Nelder-Mead",
+                   options={"maxfev": max_nfev, "xatol": 1e-3, "fatol": 1e-3})
+    fitted = candidate(res.x)
+    return fitted, {"start": start, "fitted": {n: getattr(fitted.tier2, n) for n in FIT_NAMES},
+                    "objective": float(res.fun), "evaluations": count[0],
+                    "runs": [str(d) for d in run_dirs]}
+
+
 def evaluate(params: Params, run_dirs: Sequence[str | FsPath], tiers: Sequence[int] = (1, 2),
              out: str | FsPath | None = None, progress=None) -> list[dict]:
     """Rows {path, density, seeds, figure, DEM, tier t...} for every path and density of
@@ -161,6 +259,7 @@ def evaluate(params: Params, run_dirs: Sequence[str | FsPath], tiers: Sequence[i
     sources = ("DEM",) + tuple(f"tier {t}" for t in tiers)
     rows: list[dict] = []
     plots = {}
+    reference = {}
     for (path_name, density), dirs in sorted(group_runs(run_dirs).items()):
         path = load_path(path_name)
         curve = dem_curve(path, [read_history(d / "history.csv") for d in dirs])
@@ -177,6 +276,11 @@ def evaluate(params: Params, run_dirs: Sequence[str | FsPath], tiers: Sequence[i
             rows.append({"path": path_name, "density": density, "seeds": len(dirs),
                          "figure": name, **{src: figs[src].get(name, math.nan) for src in sources}})
         if out is not None:
+            columns, table = curve_table(curve)
+            write_csv(FsPath(out) / "reference" / f"{target.name}.csv", columns, table)
+            reference[target.name] = {"path": path_name, "density": density,
+                                      "runs": [str(d) for d in dirs], "start": curve.start,
+                                      "file": f"{target.name}.csv", "dem": figs["DEM"]}
             plots[target.name] = overlay_plot(curve, samples, FsPath(out) / f"{target.name}.png",
                                               f"{path_name}, {density}: DEM mean of {len(dirs)} "
                                               f"seeds vs the model tiers")
@@ -186,7 +290,61 @@ def evaluate(params: Params, run_dirs: Sequence[str | FsPath], tiers: Sequence[i
         write_csv(out / "transients.csv", columns, [[r[c] for c in columns] for r in rows])
         with atomic_path(out / "transients.md") as tmp:
             tmp.write_text(markdown_table(rows, columns))
+        write_json(out / "reference" / "index.json", {"curves": reference})
         write_json(out / "transients.json", {"params": params.source,
                                              "runs": [str(d) for d in run_dirs], "rows": rows,
                                              "plots": {k: str(v) for k, v in plots.items()}})
     return rows
+
+
+def read_reference(folder: str | FsPath) -> dict[str, tuple[str, DemCurve, dict]]:
+    """{name: (path name, DEM curve, the DEM's figures)} of a ``reference/`` folder written
+    by :func:`evaluate`."""
+    folder = FsPath(folder)
+    index = json.loads((folder / "index.json").read_text())["curves"]
+    return {name: (e["path"], read_curve(folder / e["file"], e["start"]), e["dem"])
+            for name, e in index.items()}
+
+
+def run_transients(run_dirs: Sequence[str | FsPath], out: str | FsPath,
+                   params_file: str | None = None, fit: bool = False, max_nfev: int = 150,
+                   command: str = "") -> dict[str, FsPath]:
+    """``contfab transients``: with ``fit``, fit tier 2 on the runs and write
+    ``OUT/params.toml`` (its ``[provenance]`` records the command, the runs and the fit);
+    then the figures of the module doc for tiers 1 and 2 into OUT. Returns the files."""
+    from tqdm import tqdm
+
+    from contfab.params import default_params, default_params_path, load_params
+    from contfab.toml_writer import dumps
+    from dem.provenance import code_versions
+
+    if not run_dirs:
+        raise ValueError("no DEM run directories given")
+    missing = [str(d) for d in run_dirs if not (FsPath(d) / "history.json").is_file()]
+    if missing:
+        raise FileNotFoundError(f"not a finished 'contfab dem run' directory (no history.json): "
+                                f"{', '.join(missing)}")
+    if max_nfev < 1:
+        raise ValueError(f"max_nfev = {max_nfev} out of range; accepted >= 1")
+    params = default_params() if params_file is None else load_params(params_file)
+    out = FsPath(out)
+    written: dict[str, FsPath] = {}
+    if fit:
+        with tqdm(total=max_nfev, desc="fit on transients", unit="eval") as bar:
+            def step(k, j):
+                bar.update(1)
+                bar.set_postfix_str(f"J = {j:.3g}")
+            params, record = fit_transients(params, run_dirs, max_nfev, progress=step)
+        doc = params.to_dict()
+        doc["provenance"] = {"command": command, "base_params": str(params_file or default_params_path()),
+                             "fit_on_transients": record, "versions": code_versions()}
+        with atomic_path(out / "params.toml") as tmp:
+            tmp.write_text(dumps(doc, "contfab model parameters: tier 2's fabric fitted on DEM "
+                                      "transients (contfab transients --fit)"))
+        written["params"] = out / "params.toml"
+    with tqdm(desc="model runs", unit="run") as bar:
+        evaluate(params, run_dirs, out=out, progress=lambda label: bar.update(1))
+    for name in ("transients.csv", "transients.md", "transients.json"):
+        written[name] = out / name
+    written["plots"] = out / "*.png"
+    return written

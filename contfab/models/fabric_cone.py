@@ -85,6 +85,7 @@ from contfab.models.cone import (STATUS_APEX, STATUS_ELASTIC, STATUS_FACE, STATU
                                  _finish, _inputs_finite, tier1_angles)
 from contfab.models.fabric_law import balance_work, fabric_step, rotate_fabric
 from contfab.params import (A_CRIT, B_RATIO_CRIT, BULK, DILATANCY_FABRIC, FABRIC_LAW,
+                            FABRIC_DILATION, FABRIC_SPEED,
                             FABRIC_WEIGHT, K_C, K_O, KAPPA_A, RELAX_RATE, SHEAR)
 from contfab.tensors import hypot, isotropic_stiffness_into, rotate
 
@@ -174,7 +175,7 @@ def _fabric(q0, bc, bs, dexx, deyy, dgxy, c, prm, sc):
     """Φ(q_n, Δεp, c) into sc.q, ∂Φ into sc.dq; True if projected onto the admissible set."""
     return fabric_step(q0, bc, bs, dexx, deyy, dgxy, c, int(prm[FABRIC_LAW]), prm[KAPPA_A],
                        prm[K_C], prm[K_O], prm[A_CRIT], prm[B_RATIO_CRIT], prm[RELAX_RATE],
-                       sc.q, sc.dq, sc.ws)
+                       prm[FABRIC_SPEED], prm[FABRIC_DILATION], sc.q, sc.dq, sc.ws)
 
 
 @njit(**KERNEL)
