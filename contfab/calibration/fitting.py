@@ -53,7 +53,7 @@ class FitParam:
     hi: float
 
 
-TIER1 = (FitParam("tier1", "phi_star_deg", 8.0, 45.0),
+TIER1 = (FitParam("tier1", "phi_star_deg", 8.0, 45.0),    # φ* >= the template's φ_min
          FitParam("tier1", "dphi_dc_deg", 0.0, 2000.0),
          FitParam("tier1", "dpsi_dc_deg", 0.0, 2000.0),
          FitParam("tier1", "c_star", 0.70, 0.90))
@@ -67,7 +67,7 @@ LAWS = {
                 FitParam("tier2", "k_c", 0.0, 200.0),
                 FitParam("tier2", "k_o", 0.0, 100.0)),
     # z_crit <= 4 and B/A <= 0.27 keep the critical fabric inside the admissible set
-    # (z/6 + (√3/4)(B/A) z/π <= 0.76)
+    # (z/6 + (√3/4)(B/A) z/π <= 0.82)
     "relaxation": (FitParam("tier2", "z_crit", 1.5, 4.0),
                    B_RATIO_CRIT,
                    FitParam("tier2", "relax_rate", 0.0, 200.0)),
