@@ -128,7 +128,8 @@ def test_dem_simple_shear_to_gamma_10_keeps_every_invariant():
 @pytest.mark.parametrize("tier", [1, 2])
 def test_a_million_random_material_point_steps_keep_every_invariant(tier):
     """Acceptance 3, material point: 10 chains x 1e5 random steps (sizes 1e-7..1e-3)
-    (tier 2 measured: no failure, dissipation >= -1.4e-16 relative, fabric admissible, 23 s)."""
+    (tier 2 measured: no failure, yield 4.8e-13 and dissipation 1.4e-16 relative, fabric
+    admissible, 30 s)."""
     prm = point_matrix.params(tier)
     worst = point_matrix.random_walk(tier, prm, 10, 100_000)
     print(worst)

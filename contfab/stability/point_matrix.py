@@ -8,6 +8,7 @@ The invariants every update is checked against (:func:`step_invariants`), with
 C the regularization stiffness and Q the rotation by Δω:
 
 * yield: R - sin φ(c) P <= 0 and P >= 0 (tiers 0/1, tension positive, P = -(σxx+σyy)/2);
+  tier 2: |s + P α| - (sin φ(c) - w b_c) P <= 0, α = w (Bc, Bs)/A, s = ((σxx-σyy)/2, σxy);
 * plastic dissipation per step D = σ_{n+1} · Δεp >= 0, Δεp = Δε - C⁻¹(σ_{n+1} - Qσ_nQᵀ)
   (Voigt, engineering shear: the work conjugate pair);
 * c in (0, 1); fabric admissible (tier 2); every output finite; no status -1.
@@ -74,6 +75,14 @@ def step_invariants(tier: int, prm: Params, stress_n, state_n, dstrain, dspin, r
         a = prm.array(1)
         sphi = np.array([math.sin(cone.tier1_angles(c, a)[0]) for c in res.state[:, 1]])
         out["yield"] = float(np.max(np.maximum(r - sphi * p, 0.0) / (size + 1e-300)))
+    elif tier == 2:
+        a = prm.array(1)
+        w = prm.tier2.fabric_weight
+        m = np.array([math.sin(cone.tier1_angles(c, a)[0]) for c in res.state[:, 1]])
+        m -= w * prm.tier2.b_ratio_crit
+        ux = 0.5 * (res.stress[:, 0] - res.stress[:, 1]) + p * w * res.state[:, 3] / res.state[:, 2]
+        uy = res.stress[:, 2] + p * w * res.state[:, 4] / res.state[:, 2]
+        out["yield"] = float(np.max(np.maximum(np.hypot(ux, uy) - m * p, 0.0) / (size + 1e-300)))
     if tier >= 1:
         c = res.state[:, 1]
         out["c_range"] = float(np.max(np.maximum(np.maximum(-c, c - 1.0), 0.0)))
