@@ -91,10 +91,11 @@ def test_every_standard_path_has_stored_dem_curves():
 @pytest.mark.parametrize("tier, section, change", [
     (1, "tier1", {"phi_star_deg": PARAMS.tier1.phi_star_deg + 2.0}),
     (1, "tier1", {"c_star": PARAMS.tier1.c_star + 0.004}),
-    (2, "tier2", {"a0_deg": PARAMS.tier2.a0_deg + 2.0}),
+    (2, "tier2", {"b_ratio_crit": PARAMS.tier2.b_ratio_crit - 0.03}),
 ])
 def test_a_perturbed_model_is_caught(tier, section, change):
-    """φ* + 2°, c* + 0.004 (tier 1), a0 + 2° (tier 2): the stored-curve check fails."""
+    """φ* + 2°, c* + 0.004 (tier 1), the critical anisotropy b_c - 0.03 (tier 2: the
+    relaxation's target and the cone's fabric part): the stored-curve check fails."""
     perturbed = PARAMS.replace(section, **change)
     fitted = [n for n, e in INDEX["curves"].items() if e["role"] == "fit"]
     assert any(mismatches(perturbed, tier, n) for n in fitted)
