@@ -314,7 +314,7 @@ def run_transients(run_dirs: Sequence[str | FsPath], out: str | FsPath,
     then the figures of the module doc for tiers 1 and 2 into OUT. Returns the files."""
     from tqdm import tqdm
 
-    from contfab.params import default_params, default_params_path, load_params
+    from contfab.params import default_params, load_params
     from contfab.toml_writer import dumps
     from dem.provenance import code_versions
 
@@ -336,7 +336,8 @@ def run_transients(run_dirs: Sequence[str | FsPath], out: str | FsPath,
                 bar.set_postfix_str(f"J = {j:.3g}")
             params, record = fit_transients(params, run_dirs, max_nfev, progress=step)
         doc = params.to_dict()
-        doc["provenance"] = {"command": command, "base_params": str(params_file or default_params_path()),
+        doc["provenance"] = {"command": command,
+                             "base_params": str(params_file) if params_file else "shipped defaults",
                              "fit_on_transients": record, "versions": code_versions()}
         with atomic_path(out / "params.toml") as tmp:
             tmp.write_text(dumps(doc, "contfab model parameters: tier 2's fabric fitted on DEM "
