@@ -291,6 +291,9 @@ def _add_transients(p: argparse.ArgumentParser) -> None:
                    help="fit tier 2's fabric parameters on these runs first (writes OUT/params.toml)")
     p.add_argument("--max-nfev", type=int, default=150,
                    help="objective evaluations of the fit (default 150)")
+    p.add_argument("--auto-table", default=None,
+                   help="also write the tier = auto table of measured bounds to this CSV (runs "
+                        "tier 0 too, and measures the costs per increment)")
 
 
 def _run_transients(args) -> None:
@@ -298,9 +301,10 @@ def _run_transients(args) -> None:
 
     command = (f"contfab transients {' '.join(args.runs)} --out {args.out}"
                f"{' --params ' + args.params if args.params else ''}"
-               f"{' --fit --max-nfev ' + str(args.max_nfev) if args.fit else ''}")
+               f"{' --fit --max-nfev ' + str(args.max_nfev) if args.fit else ''}"
+               f"{' --auto-table ' + args.auto_table if args.auto_table else ''}")
     _print_written(run_transients(args.runs, args.out, args.params, args.fit, args.max_nfev,
-                                  command=command))
+                                  command=command, auto_table=args.auto_table))
 
 
 # --------------------------------------------------------------------------- compare

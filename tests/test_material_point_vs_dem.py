@@ -49,7 +49,11 @@ KNOWN: dict[tuple[str, int], str] = {
     ("biaxial_loose_k10000", 2): "A: as for the dense sample at κ = 1e4",
     ("direction_change_loose_k1000", 1): "R/P: 15 % of strain after a 90° change the DEM's "
                                          "R/P (0.33) is still above its critical 0.27",
-    ("direction_change_loose_k1000", 2): "R/P: as for tier 1, less so (0.031 against 0.051)",
+    ("direction_change_loose_k1000", 2): "R/P: as for tier 1, less so (0.034 against 0.051); "
+                                         "B 0.035 below the DEM's, still rising there",
+    ("biaxial_loose_k3000", 2): "B: 0.024 above; these loose samples end at B = 0.221, 10 % "
+                                "below the b_c A_c = 0.247 of the κ = 1e3 transients tier 2 "
+                                "was fitted on",
     ("isochoric_shear_dense_k1000", 2): "A: held at c = 0.84 the DEM keeps its dense "
                                         "coordination (z = 3.7); tier 2's relaxes to one z_c",
 }

@@ -18,7 +18,14 @@ stage, γ in simple shear):
   and the mean non-coaxiality θσ - θD (θσ, θD the compressive principal directions of the
   stress and of the strain increment between grid points);
 * the steady state: the residual R/P, c, A and B errors
-  (:func:`contfab.calibration.curves.errors`).
+  (:func:`contfab.calibration.curves.errors`), and the RMS error of R/P over the whole path.
+
+**The** ``tier = "auto"`` **table** (``--auto-table FILE``, :func:`table_from_transients`):
+per loading class and model tier, the bound is the largest R/P error of that tier over the
+class's paths — "monotonic": the RMS over the whole path of the biaxial tests (dense and
+loose); "reversal": the RMS over the first TRANSIENT_RMS after each change of loading of the
+reversals and changes of direction (the held-out ``shear_cycles`` included) — and the cost
+per increment is :func:`contfab.selection.auto_tier.measure_costs`'s.
 
 ``contfab transients RUN_DIR... --out DIR`` writes ``transients.csv`` / ``.md`` (one row
 per path, density and figure, a column per source) and ``transients.json``, an overlay
@@ -154,7 +161,9 @@ def figures(path_name: str, curve: DemCurve, model: Mapping[str, np.ndarray] | N
             win = (g.stage == k) & (g.s > 0.0) & (g.s <= TRANSIENT_RMS)
             out[f"change{k}_rms_RP"] = _rms(model["RP"][win] - curve.mean["RP"][win])
     if path_name == "axes_rotation" and g.stage.max() >= 1:
-        out["rotation_noncoaxiality_deg"] = noncoaxiality(g.stage, d, 1)
+        if all(q in d for q in ("eps_xx", "eps_yy", "eps_xy", "sxx", "syy", "sxy")):
+            # (a stored reference curve keeps no stresses and strains: its figure is in its index)
+            out["rotation_noncoaxiality_deg"] = noncoaxiality(g.stage, d, 1)
         if model is not None:
             win = g.stage == 1
             out["rotation_rms_theta_p_deg"] = float(np.degrees(_rms(
@@ -165,6 +174,7 @@ def figures(path_name: str, curve: DemCurve, model: Mapping[str, np.ndarray] | N
         out["buildup_rms_RP"] = _rms(model["RP"][win] - curve.mean["RP"][win])
         out["buildup_rms_B"] = _rms(model["B"][win] - curve.mean["B"][win])
     if model is not None:
+        out["path_rms_RP"] = _rms(model["RP"] - curve.mean["RP"])
         errs = errors(curve, model)
         for q in ("RP", "c", "A", "B"):
             if q in errs:
@@ -219,23 +229,14 @@ def fit_transients(params: Params, run_dirs: Sequence[str | FsPath], max_nfev: i
     hi = np.array([FIT_BOUNDS[n][1] for n in FIT_NAMES])
     start = {n: getattr(params.tier2, n) for n in FIT_NAMES}
     x0 = np.log(np.clip([min(start[n], hi[k]) for k, n in enumerate(FIT_NAMES)], lo, hi))
-    groups = group_runs(run_dirs)
-    curves = {key: (load_path(key[0]), dem_curve(load_path(key[0]),
-                                                 [read_history(d / "history.csv") for d in dirs]))
-              for key, dirs in sorted(groups.items())}
+    curves = {k: v[0] for k, v in run_curves(run_dirs).items()}
     count = [0]
 
     def candidate(u) -> Params:
         return params.replace("tier2", **dict(zip(FIT_NAMES, map(float, np.clip(np.exp(u), lo, hi)))))
 
     def objective(u) -> float:
-        p = candidate(u).with_tier(2)
-        rows = []
-        for (path_name, density), (path, curve) in curves.items():
-            sample = run_model(p, 2, Target(f"{path_name}_{density}", path, curve))[0]
-            figs = {"DEM": figures(path_name, curve, None), "tier 2": figures(path_name, curve, sample)}
-            rows += [{"path": path_name, "density": density, "figure": n,
-                      **{src: figs[src].get(n, math.nan) for src in figs}} for n in figs["tier 2"]]
+        rows = figure_rows(candidate(u), curves, (2,))[0]
         j = float(sum(e * e for _, e in objective_terms(rows)))
         count[0] += 1
         if progress is not None:
@@ -250,51 +251,93 @@ def fit_transients(params: Params, run_dirs: Sequence[str | FsPath], max_nfev: i
                     "runs": [str(d) for d in run_dirs]}
 
 
-def evaluate(params: Params, run_dirs: Sequence[str | FsPath], tiers: Sequence[int] = (1, 2),
-             out: str | FsPath | None = None, progress=None) -> list[dict]:
-    """Rows {path, density, seeds, figure, DEM, tier t...} for every path and density of
-    the runs (module doc; the DEM column is empty for error figures); with ``out``, the
-    tables, the JSON and the overlays are written there. ``progress(label)`` is called
-    before each model run."""
+def run_curves(run_dirs: Sequence[str | FsPath]) -> dict[tuple[str, str], tuple[DemCurve, list]]:
+    """{(path name, density): (the DEM's seed-mean curve, its run directories)}."""
+    out = {}
+    for (path_name, density), dirs in sorted(group_runs(run_dirs).items()):
+        out[(path_name, density)] = (dem_curve(load_path(path_name),
+                                               [read_history(d / "history.csv") for d in dirs]), dirs)
+    return out
+
+
+def figure_rows(params: Params, curves: Mapping[tuple[str, str], DemCurve],
+                tiers: Sequence[int] = (1, 2), progress=None):
+    """(rows, samples): rows {path, density, figure, DEM, tier t...} of every curve (the DEM
+    column is empty for error figures), and each model's samples {name: {tier t: sample}}.
+    ``progress(label)`` is called before each model run."""
     sources = ("DEM",) + tuple(f"tier {t}" for t in tiers)
     rows: list[dict] = []
-    plots = {}
-    reference = {}
-    for (path_name, density), dirs in sorted(group_runs(run_dirs).items()):
-        path = load_path(path_name)
-        curve = dem_curve(path, [read_history(d / "history.csv") for d in dirs])
-        target = Target(f"{path_name}_{density}", path, curve)
-        samples = {}
+    samples: dict[str, dict] = {}
+    for (path_name, density), curve in curves.items():
+        name = f"{path_name}_{density}"
+        target = Target(name, load_path(path_name), curve)
         figs = {"DEM": figures(path_name, curve, None)}
+        samples[name] = {}
         for t in tiers:
             if progress is not None:
-                progress(f"{target.name}, tier {t}")
-            samples[f"tier {t}"] = run_model(params.with_tier(t), t, target)[0]
-            figs[f"tier {t}"] = figures(path_name, curve, samples[f"tier {t}"])
-        names = list(dict.fromkeys(n for f in figs.values() for n in f))
-        for name in names:
-            rows.append({"path": path_name, "density": density, "seeds": len(dirs),
-                         "figure": name, **{src: figs[src].get(name, math.nan) for src in sources}})
-        if out is not None:
-            columns, table = curve_table(curve)
-            write_csv(FsPath(out) / "reference" / f"{target.name}.csv", columns, table)
-            reference[target.name] = {"path": path_name, "density": density,
-                                      "runs": [str(d) for d in dirs], "start": curve.start,
-                                      "file": f"{target.name}.csv", "dem": figs["DEM"]}
-            plots[target.name] = overlay_plot(curve, samples, FsPath(out) / f"{target.name}.png",
-                                              f"{path_name}, {density}: DEM mean of {len(dirs)} "
-                                              f"seeds vs the model tiers")
-    if out is not None:
-        out = FsPath(out)
-        columns = ("path", "density", "seeds", "figure") + sources
-        write_csv(out / "transients.csv", columns, [[r[c] for c in columns] for r in rows])
-        with atomic_path(out / "transients.md") as tmp:
-            tmp.write_text(markdown_table(rows, columns))
-        write_json(out / "reference" / "index.json", {"curves": reference})
-        write_json(out / "transients.json", {"params": params.source,
-                                             "runs": [str(d) for d in run_dirs], "rows": rows,
-                                             "plots": {k: str(v) for k, v in plots.items()}})
+                progress(f"{name}, tier {t}")
+            samples[name][f"tier {t}"] = run_model(params.with_tier(t), t, target)[0]
+            figs[f"tier {t}"] = figures(path_name, curve, samples[name][f"tier {t}"])
+        for fig in dict.fromkeys(n for f in figs.values() for n in f):
+            rows.append({"path": path_name, "density": density, "figure": fig,
+                         **{src: figs[src].get(fig, math.nan) for src in sources}})
+    return rows, samples
+
+
+def evaluate(params: Params, run_dirs: Sequence[str | FsPath], tiers: Sequence[int] = (1, 2),
+             out: str | FsPath | None = None, progress=None) -> list[dict]:
+    """:func:`figure_rows` of the runs' curves; with ``out``, the tables, the JSON, the
+    overlays and the reference curves (``reference/``, :func:`read_reference`) are written
+    there."""
+    curves = run_curves(run_dirs)
+    rows, samples = figure_rows(params, {k: v[0] for k, v in curves.items()}, tiers, progress)
+    if out is None:
+        return rows
+    out = FsPath(out)
+    reference, plots = {}, {}
+    for (path_name, density), (curve, dirs) in curves.items():
+        name = f"{path_name}_{density}"
+        columns, table = curve_table(curve)
+        write_csv(out / "reference" / f"{name}.csv", columns, table)
+        reference[name] = {"path": path_name, "density": density, "runs": [str(d) for d in dirs],
+                           "start": curve.start, "file": f"{name}.csv",
+                           "dem": figures(path_name, curve, None)}
+        plots[name] = overlay_plot(curve, samples[name], out / f"{name}.png",
+                                   f"{path_name}, {density}: DEM mean of {len(dirs)} seeds vs "
+                                   f"the model tiers")
+    columns = ("path", "density", "figure", "DEM") + tuple(f"tier {t}" for t in tiers)
+    write_csv(out / "transients.csv", columns, [[r[c] for c in columns] for r in rows])
+    with atomic_path(out / "transients.md") as tmp:
+        tmp.write_text(markdown_table(rows, columns))
+    write_json(out / "reference" / "index.json", {"curves": reference})
+    write_json(out / "transients.json", {"params": params.source,
+                                         "runs": [str(d) for d in run_dirs], "rows": rows,
+                                         "plots": {k: str(v) for k, v in plots.items()}})
     return rows
+
+
+AUTO_CLASSES = {"monotonic": ("biaxial",),
+                "reversal": ("simple_shear_reversal", "direction_change", "shear_cycles")}
+"""The paths whose errors bound each loading class of the ``tier = "auto"`` table."""
+
+
+def table_from_transients(rows: Sequence[Mapping], costs: Mapping[tuple[str, str], float],
+                          table: str | FsPath) -> FsPath:
+    """The ``tier = "auto"`` table (module doc) from :func:`figure_rows`' rows of tiers 0-2
+    and the costs {(loading, model): µs} of :func:`contfab.selection.auto_tier.measure_costs`."""
+    from contfab.selection.auto_tier import MODELS
+
+    out = []
+    for loading, paths in AUTO_CLASSES.items():
+        for model, (tier, params_file) in MODELS.items():
+            values = [r[f"tier {tier}"] for r in rows if r["path"] in paths and (
+                r["figure"] == "path_rms_RP" if loading == "monotonic"
+                else r["figure"].startswith("change") and r["figure"].endswith("_rms_RP"))]
+            if not values or not all(math.isfinite(v) for v in values):
+                raise ValueError(f"no finite {loading} error of {model} in the rows "
+                                 f"(paths {', '.join(paths)})")
+            out.append([loading, model, tier, params_file, max(values), costs[(loading, model)]])
+    return write_csv(table, ("loading", "model", "tier", "params_file", "error_RP", "cost_us"), out)
 
 
 def read_reference(folder: str | FsPath) -> dict[str, tuple[str, DemCurve, dict]]:
@@ -306,9 +349,18 @@ def read_reference(folder: str | FsPath) -> dict[str, tuple[str, DemCurve, dict]
             for name, e in index.items()}
 
 
+def reference_rows(params: Params, folder: str | FsPath, tiers: Sequence[int] = (1, 2)) -> list[dict]:
+    """:func:`figure_rows` of the stored reference curves of ``folder`` (their DEM figures
+    from the mean curves, as :func:`evaluate` computes them)."""
+    index = json.loads((FsPath(folder) / "index.json").read_text())["curves"]
+    curves = {(e["path"], e["density"]): read_curve(FsPath(folder) / e["file"], e["start"])
+              for e in index.values()}
+    return figure_rows(params, curves, tiers)[0]
+
+
 def run_transients(run_dirs: Sequence[str | FsPath], out: str | FsPath,
                    params_file: str | None = None, fit: bool = False, max_nfev: int = 150,
-                   command: str = "") -> dict[str, FsPath]:
+                   command: str = "", auto_table: str | None = None) -> dict[str, FsPath]:
     """``contfab transients``: with ``fit``, fit tier 2 on the runs and write
     ``OUT/params.toml`` (its ``[provenance]`` records the command, the runs and the fit);
     then the figures of the module doc for tiers 1 and 2 into OUT. Returns the files."""
@@ -343,8 +395,13 @@ def run_transients(run_dirs: Sequence[str | FsPath], out: str | FsPath,
             tmp.write_text(dumps(doc, "contfab model parameters: tier 2's fabric fitted on DEM "
                                       "transients (contfab transients --fit)"))
         written["params"] = out / "params.toml"
+    tiers = (0, 1, 2) if auto_table else (1, 2)
     with tqdm(desc="model runs", unit="run") as bar:
-        evaluate(params, run_dirs, out=out, progress=lambda label: bar.update(1))
+        rows = evaluate(params, run_dirs, tiers=tiers, out=out, progress=lambda label: bar.update(1))
+    if auto_table:
+        from contfab.selection.auto_tier import measure_costs
+
+        written["auto_table"] = table_from_transients(rows, measure_costs(), auto_table)
     for name in ("transients.csv", "transients.md", "transients.json"):
         written[name] = out / name
     written["plots"] = out / "*.png"

@@ -110,7 +110,7 @@ def evaluate_lambda(study, points, results):
 
 
 def increment_study(fast: bool) -> Study:
-    h = [1.6e-2, 8e-3, 4e-3, 2e-3] if fast else [3.2e-2 / 2**k for k in range(8)]
+    h = [4e-3, 2e-3, 1e-3, 5e-4] if fast else [3.2e-2 / 2**k for k in range(10)]
     return Study(
         name="point_increment", knobs=("increment",),
         description="material-point increment size Δτ_max (tier 2, simple shear with reversal)",
