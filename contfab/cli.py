@@ -283,6 +283,34 @@ def _run_calibrate(args) -> None:
     print(f"{'plots':>10}: {FsPath(args.out) / 'report'}/*.png")
 
 
+# --------------------------------------------------------------------------- transients
+
+def _add_transients(p: argparse.ArgumentParser) -> None:
+    p.add_argument("runs", nargs="+", help="'contfab dem run' directories (several seeds of "
+                                           "a path and density are averaged)")
+    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("--params", default=None,
+                   help="parameter TOML file (default: the shipped contfab/data/default_params.toml)")
+    p.add_argument("--fit", action="store_true",
+                   help="fit tier 2's fabric parameters on these runs first (writes OUT/params.toml)")
+    p.add_argument("--max-nfev", type=int, default=150,
+                   help="objective evaluations of the fit (default 150)")
+    p.add_argument("--auto-table", default=None,
+                   help="also write the tier = auto table of measured bounds to this CSV (runs "
+                        "tier 0 too, and measures the costs per increment)")
+
+
+def _run_transients(args) -> None:
+    from contfab.calibration.transients import run_transients
+
+    command = (f"contfab transients {' '.join(args.runs)} --out {args.out}"
+               f"{' --params ' + args.params if args.params else ''}"
+               f"{' --fit --max-nfev ' + str(args.max_nfev) if args.fit else ''}"
+               f"{' --auto-table ' + args.auto_table if args.auto_table else ''}")
+    _print_written(run_transients(args.runs, args.out, args.params, args.fit, args.max_nfev,
+                                  command=command, auto_table=args.auto_table))
+
+
 # --------------------------------------------------------------------------- compare
 
 def _add_compare(p: argparse.ArgumentParser) -> None:
@@ -505,6 +533,10 @@ COMMANDS = {
                                       "JSON, PNG)"),
     "calibrate": (_add_calibrate, _run_calibrate, "fit the model tiers to a DEM campaign: "
                                                   "params.toml with provenance and a report"),
+    "transients": (_add_transients, _run_transients, "the model tiers against DEM runs through "
+                                                     "reversals, changes of direction and the "
+                                                     "build-up from isotropy (optionally fitting "
+                                                     "tier 2 on them)"),
     "compare": (_add_compare, _run_compare, "the DEM and the material point on one path: "
                                             "overlay plots and error metrics"),
     "stability": (_add_stability, _run_stability, "run the numerical-stability matrix (CSV and "

@@ -1,9 +1,8 @@
 """How the constitutive kernels are compiled by numba: one set of flags, in one place.
 
-:data:`KERNEL` is for every tier-2 kernel (:mod:`contfab.models.fabric_model`,
-:mod:`contfab.models.slip_planes`, :mod:`contfab.models.fabric_law`) and the small tensor
-helpers they inline, except those that allocate (the per-range scratch, the loops over
-points, ``drive_fabric``):
+:data:`KERNEL` is for every tier-2 kernel (:mod:`contfab.models.fabric_cone`,
+:mod:`contfab.models.fabric_law`) and the small tensor helpers they inline, except those
+that allocate (the per-range scratch, the loops over points, ``drive_fabric``):
 
 * ``_nrt=False``: they take arrays and never allocate or return one, so numba's reference
   counting of each array argument at each call — an atomic incref/decref pair, about 5 ns
@@ -11,14 +10,10 @@ points, ``drive_fabric``):
   outputs bitwise unchanged). An allocation in such a function is a compile error, so the
   flag cannot hide a leak; ``_nrt`` is numba's own (underscored) switch for this.
 * ``fastmath={"contract"}``: LLVM may fuse a multiply and an add into one FMA (one
-  rounding instead of two). Measured on the bench's tier-2 points (kernel alone, minimum of
-  7 calls on 100 000 points): 2.37 → 2.15 µs per update with the five flags
-  {contract, arcp, nsz, reassoc, afn}, and within noise of that with ``contract`` alone.
-  Only ``contract``: ``arcp`` turns d/r into d·(1/r), which is NaN for a subnormal
-  deviator radius (found by tests/test_slip_planes.py at R/P = 5e-324), and ``nnan``/``ninf``
-  would let LLVM delete the NaN checks the kernels rely on (it may then assume no value is
-  NaN or infinite). Results move by
-  round-off only (stress ≤ 7e-13 relative, the local solve's own tolerance).
+  rounding instead of two). Only ``contract``: ``arcp`` turns d/r into d·(1/r), which is
+  NaN for a subnormal deviator radius (R/P = 5e-324), and ``nnan``/``ninf`` would let LLVM
+  delete the NaN checks the kernels rely on (it may then assume no value is NaN or
+  infinite). Results move by round-off only.
 """
 KERNEL = dict(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
 """numba.njit flags of a non-allocating constitutive kernel (module doc)."""

@@ -198,7 +198,7 @@ def solve_increment(tier: int, params: Params, stress_n: np.ndarray, state_n: np
         full = control_jacobian(out.stress[0], t, dstrain[0]) if spin_unknown else t @ STRAIN_OF_L
         jac = full[rows][:, cols]
         try:
-            step = np.linalg.solve(jac, r) if len(cols) > 1 else [r[0] / jac[0, 0]]
+            step = np.linalg.solve(jac, r) if len(cols) > 1 else [r[0] / float(jac[0, 0])]
         except (np.linalg.LinAlgError, ZeroDivisionError):
             step = [math.inf]
         if not all(map(math.isfinite, step)):

@@ -6,8 +6,8 @@ A parameter file holds the selected ``tier`` and one table per section::
     [regularization]   lambda, p_ref, nu          (all tiers)
     [tier0]            phi_deg, psi_deg            (tier 0)
     [tier1]            phi_star_deg, dphi_dc_deg, dpsi_dc_deg, c_star, phi_min_deg, phi_max_deg
-    [tier2]            a0_deg..a3_deg, b0_deg..b3_deg, sharpness, n_search, fabric_law,
-                       kappa_a, k_c, k_o, z_crit, b_ratio_crit, relax_rate (tier 2, with [tier1])
+    [tier2]            fabric_weight, dilatancy_fabric, fabric_law, kappa_a, k_c, k_o,
+                       z_crit, b_ratio_crit, relax_rate (tier 2, with [tier1])
     [initial]          c0, A0, B0, theta_p0_deg    (initial state of tiers >= 1)
     [provenance]       free-form (how the file was made, e.g. by ``contfab calibrate``);
                        not validated, not part of the parameter set
@@ -90,7 +90,7 @@ class Section:
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise ParamError(f"{where} = {value!r} is not a number (accepted range {accepted})")
             value = float(value)
-            if not math.isfinite(value) or value not in f.metadata["range"]:
+            if math.isnan(value) or value not in f.metadata["range"]:
                 raise ParamError(f"{where} = {value:g} is outside the accepted range {accepted} "
                                  f"({f.metadata['doc']})")
             object.__setattr__(self, f.name, value)
@@ -142,30 +142,24 @@ SHEAR = 1           # G
 SIN_PHI = 2         # sin phi
 SIN_PSI = 3         # sin psi
 # Tiers 1 and 2 (angles in radians).
-PHI_STAR = 2        # phi* (tier 2 reads a0 in its place)
+PHI_STAR = 2        # phi*
 DPHI_DC = 3         # phi' = dphi/dc
 DPSI_DC = 4         # psi' = dpsi/dc
 C_STAR = 5          # c*
 PHI_MIN = 6         # clamps of phi(c)
 PHI_MAX = 7
-# Tier 2 (angles in radians).
-A0 = 8              # plane friction: a0 + a1 A + a2 B cos(2(theta - theta_p) + a3)
-A1 = 9
-A2 = 10
-A3 = 11
-B0 = 12             # plane dilatancy: b0 + b1 A + b2 B cos(2(theta - theta_p) + b3)
-B1 = 13
-B2 = 14
-B3 = 15
-SHARPNESS = 16      # softmax sharpness beta
-N_SEARCH = 17       # plane-search grid points per arc (an integer)
-FABRIC_LAW = 18     # Tier2.LAWS code: 0 balance, 1 relaxation
-KAPPA_A = 19        # balance law: kappa_a, kc, ko
-K_C = 20
-K_O = 21
-A_CRIT = 22         # relaxation law: A_c = z_c/pi, b_c = B_c/A_c, rate k per unit plastic shear
-B_RATIO_CRIT = 23
-RELAX_RATE = 24
+# Tier 2.
+FABRIC_WEIGHT = 8     # w: the cone's axis alpha = w (Bc, Bs)/A
+DILATANCY_FABRIC = 9  # k_d: D = sin psi(c) + k_d (alignment - w b_c)
+FABRIC_LAW = 10       # Tier2.LAWS code: 0 balance, 1 relaxation
+KAPPA_A = 11          # balance law: kappa_a, kc, ko
+K_C = 12
+K_O = 13
+A_CRIT = 14           # relaxation law: A_c = z_c/pi, b_c = B_c/A_c, rate k per unit plastic shear
+B_RATIO_CRIT = 15
+RELAX_RATE = 16
+FABRIC_SPEED = 17     # relaxation law: largest speed v of the anisotropy (inf: exponential)
+FABRIC_DILATION = 18  # relaxation law: acceleration beta of the rate by dilation
 
 
 # --------------------------------------------------------------------------- sections
@@ -277,53 +271,47 @@ class Tier1(Section):
 
 @dataclass(frozen=True)
 class Tier2(Section):
-    """Tier 2: friction and dilatancy per slip plane, fabric hardening (docs/theory.md §6–§7).
+    """Tier 2: the cone whose axis follows the fabric, fabric hardening (docs/theory.md §6–§7).
 
-    φ(θ) = a0 + φ'(c - c*) + a1 A + a2 B cos(2(θ - θp) + a3), ψ(θ) likewise with b0..b3
-    (docs/theory.md §6; the c-terms and the clamps are tier 1's, read from ``[tier1]``: with
-    a0 = φ*, b0 = a1 = b1 = a2 = b2 = 0 tier 2 is tier 1). The yield function is the
-    softmax-weighted mean (``sharpness`` β) of the two conjugate slip families' exact maxima,
-    found from a grid of ``n_search`` planes per family (:mod:`contfab.models.slip_planes`).
-    ``fabric_law``: "balance" (the projected balance law, κa, kc, ko) or "relaxation" (toward
-    the critical fabric z_crit, b_ratio_crit at rate relax_rate per unit plastic shear
-    strain) (:mod:`contfab.models.fabric_law`).
+    Yield |s + P α| <= m(c) P with the axis α = w (Bc, Bs)/A and the radius
+    m(c) = sin φ(c) - w b_c (φ(c) and ψ(c) are tier 1's, read from ``[tier1]``: where the
+    fabric is the critical one aligned with the loading, the strength is tier 1's); flow
+    along u = s + P α with dilatancy D = sin ψ(c) + k_d (ā - w b_c), ā the axis' alignment
+    with the flow's compression axis (:mod:`contfab.models.fabric_cone`). ``fabric_law``:
+    "relaxation" (toward the critical fabric z_crit, b_ratio_crit at rate relax_rate per
+    unit plastic shear strain) or "balance" (the projected balance law, κa, kc, ko)
+    (:mod:`contfab.models.fabric_law`).
     """
 
     NAME: ClassVar[str] = "tier2"
     LAWS: ClassVar[dict[str, int]] = {"balance": 0, "relaxation": 1}
-    a0_deg: float = param("deg", Range(0.0, 90.0), "a0: isotropic plane friction (tier 1's phi*)")
-    a1_deg: float = param("deg per unit A", Range(-90.0, 90.0, True, True),
-                          "a1: plane friction per unit A = z/pi", default=0.0)
-    a2_deg: float = param("deg per unit B", Range(-30.0, 30.0, True, True),
-                          "a2: plane friction per unit anisotropy B (|a2| <= 30: measured, the "
-                          "plane search stays exact)", default=0.0)
-    a3_deg: float = param("deg", Range(-180.0, 180.0, True, True),
-                          "a3: phase of the friction anisotropy", default=0.0)
-    b0_deg: float = param("deg", Range(-90.0, 90.0), "b0: isotropic plane dilatancy", default=0.0)
-    b1_deg: float = param("deg per unit A", Range(-90.0, 90.0, True, True),
-                          "b1: plane dilatancy per unit A", default=0.0)
-    b2_deg: float = param("deg per unit B", Range(-90.0, 90.0, True, True),
-                          "b2: plane dilatancy per unit anisotropy B", default=0.0)
-    b3_deg: float = param("deg", Range(-180.0, 180.0, True, True),
-                          "b3: phase of the dilatancy anisotropy", default=0.0)
-    sharpness: float = param("-", POSITIVE, "softmax sharpness beta: f falls short of the "
-                             "strict max by at most 0.28 |sigma| / beta", default=50.0)
-    n_search: float = param("planes per family", Range(0.0, 1024.0, True, True),
-                            "plane-search grid (an integer; 0: warm start only)", default=8.0)
+    fabric_weight: float = param("-", Range(0.0, 1.0, lo_closed=True),
+                                 "w: the contact part of the stress ratio per unit B/A "
+                                 "(1/2 in the stress-force-fabric relation)", default=0.5)
+    dilatancy_fabric: float = param("-", Range(0.0, 10.0, True, True),
+                                    "k_d: dilatancy per unit misalignment of the fabric "
+                                    "(Rowe-Taylor slope)", default=0.9)
     fabric_law: float = param("balance | relaxation", Range(0.0, 1.0, True, True),
-                              "fabric hardening law", default=0.0)
+                              "fabric hardening law", default=1.0)
     kappa_a: float = param("-", Range(0.0, math.inf, lo_closed=True),
                            "balance law: advection coefficient kappa_a", default=3.94)
     k_c: float = param("-", Range(0.0, math.inf, lo_closed=True),
                        "balance law: creation coefficient kc", default=17.76)
     k_o: float = param("-", Range(0.0, math.inf, lo_closed=True),
                        "balance law: opening coefficient ko", default=10.0)
-    z_crit: float = param("-", Range(0.0, 6.0), "relaxation law: critical coordination z_c",
+    z_crit: float = param("-", Range(0.0, 6.0), "critical coordination z_c (relaxation law)",
                           default=3.0)
     b_ratio_crit: float = param("-", Range(0.0, 1.0, lo_closed=True),
-                                "relaxation law: critical anisotropy B/A", default=0.25)
+                                "critical anisotropy b_c = B/A", default=0.25)
     relax_rate: float = param("per unit plastic shear strain", Range(0.0, math.inf, lo_closed=True),
-                              "relaxation law: rate k", default=10.0)
+                              "relaxation law: rate k", default=13.0)
+    fabric_speed: float = param("per unit plastic shear strain",
+                                Range(0.0, math.inf, hi_closed=True),
+                                "relaxation law: largest speed v of B/A_c toward its target "
+                                "(inf: exponential relaxation at rate k)", default=math.inf)
+    fabric_dilation: float = param("-", Range(0.0, math.inf, lo_closed=True),
+                                   "relaxation law: the rate times 1 + beta tr(dep)/dgamma_s "
+                                   "while dilating", default=0.0)
 
     def to_dict(self) -> dict:
         """As :meth:`Section.to_dict`, with ``fabric_law`` by name."""
@@ -342,9 +330,6 @@ class Tier2(Section):
         return super().from_dict(table)
 
     def check(self) -> None:
-        if self.n_search != int(self.n_search):
-            raise ParamError(f"[tier2] n_search = {self.n_search:g} is not an integer "
-                             f"(accepted range [0, 1024])")
         if self.fabric_law != int(self.fabric_law):
             raise ParamError(f"[tier2] fabric_law = {self.fabric_law:g} is not a known law "
                              f"(accepted: {', '.join(self.LAWS)})")
@@ -357,14 +342,27 @@ class Tier2(Section):
                 f"b z_c/pi < 1 (Roux & Radjai 2001, eqs 1.14-1.15), got "
                 f"{self.z_crit / 6 + math.sqrt(3) / 4 * self.b_ratio_crit * a_c:.4g}")
 
+    def check_with(self, sections) -> None:
+        """The cone's radius m(c) = sin φ(c) - w b_c must stay positive for every c: its
+        smallest value is at tier 1's lower clamp φ_min."""
+        tier1 = sections.get("tier1")
+        if tier1 is None:
+            return
+        shift = self.fabric_weight * self.b_ratio_crit
+        if not math.sin(math.radians(tier1.phi_min_deg)) > shift:
+            raise ParamError(
+                f"[tier1] phi_min_deg = {tier1.phi_min_deg:g} leaves tier 2's cone empty: its "
+                f"radius sin(phi) - w b_c must be positive, i.e. phi_min_deg > "
+                f"{math.degrees(math.asin(min(shift, 1.0))):.4g} for w = {self.fabric_weight:g}, "
+                f"b_ratio_crit = {self.b_ratio_crit:g}")
+
     def array(self) -> dict[int, float]:
-        r = math.radians
-        return {A0: r(self.a0_deg), A1: r(self.a1_deg), A2: r(self.a2_deg), A3: r(self.a3_deg),
-                B0: r(self.b0_deg), B1: r(self.b1_deg), B2: r(self.b2_deg), B3: r(self.b3_deg),
-                SHARPNESS: self.sharpness, N_SEARCH: self.n_search, FABRIC_LAW: self.fabric_law,
+        return {FABRIC_WEIGHT: self.fabric_weight, DILATANCY_FABRIC: self.dilatancy_fabric,
+                FABRIC_LAW: self.fabric_law,
                 KAPPA_A: self.kappa_a, K_C: self.k_c, K_O: self.k_o,
                 A_CRIT: self.z_crit / math.pi, B_RATIO_CRIT: self.b_ratio_crit,
-                RELAX_RATE: self.relax_rate}
+                RELAX_RATE: self.relax_rate, FABRIC_SPEED: self.fabric_speed,
+                FABRIC_DILATION: self.fabric_dilation}
 
 
 @dataclass(frozen=True)

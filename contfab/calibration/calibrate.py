@@ -6,10 +6,12 @@
    (:mod:`contfab.executor`), resumable.
 2. **Fit** (:mod:`contfab.calibration.fitting`), on the seed-mean DEM curves of the fitted paths:
    tier 1 (φ*, φ', ψ', c*; quantities R/P, c); for tier 2, for *both* fabric laws, first the
-   law's coefficients alone on the fabric (A, Bc, Bs) with the planes reduced to tier 1
-   (a0 = φ*, the rest 0: the fabric then does not feed back on the stress), then the plane
-   coefficients a0..a3, b0..b3 and the law's together on R/P, c, A, Bc, Bs. The law with
-   the smaller error on the held-out paths goes into ``[tier2]``; both are written.
+   law's coefficients alone on the fabric (A, Bc, Bs) with the cone reduced to tier 1's
+   (fabric weight w = 0 and k_d = 0: the fabric then does not feed back on the stress),
+   then, at the template's w, the cone's dilatancy slope k_d, the critical anisotropy b_c
+   and the law's coefficients together on R/P, c, A, Bc, Bs
+   (:func:`contfab.calibration.fitting.tier2_spec`). The law with the smaller error on the
+   held-out paths goes into ``[tier2]``; both are written.
    Tier 0 is set to the critical state of tier 1 (φ = φ*, ψ = 0).
 3. **Evaluation**: every model on every path (fitted and held out), errors per path and
    quantity (:func:`contfab.calibration.curves.errors`), and stress probing (:mod:`contfab.calibration.probing`):
@@ -24,9 +26,10 @@
    ``report/probing.png``, ``report/curves/<path>.csv`` (DEM seed-mean curves),
    ``report/report.md`` (the summary) and ``report/summary.json``.
 
-The template values of everything not fitted (regularization λ = 1000, ν = 0; plane search
-and sharpness; the initial state = the dense samples' mean prepared state) are in
-:data:`TEMPLATE` and :func:`template`.
+The template values of everything not fitted (regularization λ = 1000, ν = 0; tier 1's
+clamps; the ``[tier2]`` defaults of :class:`contfab.params.Tier2`, the fabric weight among
+them; the initial state = the dense samples' mean prepared state) are in :data:`TEMPLATE`
+and :func:`template`.
 """
 from __future__ import annotations
 
@@ -52,14 +55,12 @@ LAW_NAMES = ("balance", "relaxation")
 MODEL_PROBE_SCALE = 0.01
 TEMPLATE = {
     "regularization": {"lambda": 1000.0, "p_ref": 1.0, "nu": 0.0},
-    "tier1": {"dphi_dc_deg": 200.0, "dpsi_dc_deg": 200.0, "phi_min_deg": 1.0, "phi_max_deg": 60.0},
-    "tier2": {"a1_deg": 0.0, "a2_deg": 0.0, "a3_deg": 0.0, "b0_deg": 0.0, "b1_deg": 0.0,
-              "b2_deg": 0.0, "b3_deg": 0.0, "sharpness": 50.0, "n_search": 8,
-              "kappa_a": 3.94, "k_c": 17.76, "k_o": 10.0, "relax_rate": 10.0},
+    "tier1": {"dphi_dc_deg": 200.0, "dpsi_dc_deg": 200.0, "phi_min_deg": 8.0, "phi_max_deg": 60.0},
 }
-"""Values not taken from the DEM: the regularization, the tier-2 numerics, and the fit's
-start values of φ', ψ' and of the plane and law coefficients (φ*, c*, a0, z_crit, B/A and
-the initial state come from the DEM curves, :func:`template`)."""
+"""Values not taken from the DEM: the regularization, tier 1's clamps (φ_min = 8° keeps tier
+2's cone radius sin φ - w b_c positive over the fit's bounds of b_c), and the fit's start
+values of φ', ψ'; ``[tier2]`` starts at :class:`contfab.params.Tier2`'s defaults (φ*, c*,
+z_crit, B/A and the initial state come from the DEM curves, :func:`template`)."""
 
 
 # --------------------------------------------------------------------------- DEM curves
@@ -95,7 +96,8 @@ def template(cs: CampaignSettings, targets: Sequence[fitting.Target], tier: int)
     and the dense samples' prepared state as ``[initial]``."""
     sheared = [t for t in targets if not t.name.startswith("isotropic")] or list(targets)
     rp = _residual(sheared, "RP")
-    phi = math.degrees(math.asin(min(max(rp, 0.05), 0.9)))
+    bound = fitting.TIER1[0]
+    phi = min(max(math.degrees(math.asin(min(max(rp, 0.0), 0.9))), bound.lo), bound.hi)
     a_res, b_res = _residual(sheared, "A"), _residual(sheared, "B")
     dense = [t for t in targets if "_dense_" in t.name] or list(targets)
     c0 = float(np.mean([t.curve.start["c"] for t in dense]))
@@ -105,9 +107,9 @@ def template(cs: CampaignSettings, targets: Sequence[fitting.Target], tier: int)
         "regularization": dict(TEMPLATE["regularization"]),
         "tier0": {"phi_deg": phi, "psi_deg": 0.0},
         "tier1": {"phi_star_deg": phi, "c_star": _residual(sheared, "c"), **TEMPLATE["tier1"]},
-        "tier2": {"a0_deg": phi, "fabric_law": "balance", **TEMPLATE["tier2"],
+        "tier2": {"fabric_law": "balance",
                   "z_crit": min(max(math.pi * a_res, 1.6), 3.9),
-                  "b_ratio_crit": min(max(b_res / a_res, 0.01), 0.59)},
+                  "b_ratio_crit": min(max(b_res / a_res, 0.01), fitting.B_RATIO_CRIT.hi)},
         "initial": {"c0": c0, "A0": a0, "B0": 0.0, "theta_p0_deg": 0.0},
     }
     return Params.from_dict(doc, source="contfab.calibration.calibrate template")
@@ -124,19 +126,23 @@ def fit_tier1(start: Params, targets, progress: bool, max_nfev: int = MAX_NFEV) 
     res = fitting.fit(start, 1, fitting.TIER1, targets, max_nfev=max_nfev, progress=progress,
                       desc="fit tier 1")
     phi = res.params.tier1.phi_star_deg
-    res.params = res.params.replace("tier0", phi_deg=phi, psi_deg=0.0).replace("tier2", a0_deg=phi)
+    res.params = res.params.replace("tier0", phi_deg=phi, psi_deg=0.0)
     return res
 
 
 def fit_tier2(tier1: Params, law: str, targets, scale, progress: bool,
               max_nfev: int = MAX_NFEV) -> fitting.FitResult:
-    """Law coefficients alone on the fabric, then planes and law together (module doc)."""
+    """Law coefficients alone on the fabric (the cone reduced to tier 1's), then the cone's
+    and the law's together at the template's fabric weight (module doc)."""
     p = tier1.replace("tier2", fabric_law=float(tier1.tier2.LAWS[law])).with_tier(2)
-    first = fitting.fit(p, 2, fitting.LAWS[law], targets, quantities=("A", "Bc", "Bs"),
+    coupled = {k: getattr(p.tier2, k) for k in ("fabric_weight", "dilatancy_fabric")}
+    first = fitting.fit(p.replace("tier2", fabric_weight=0.0, dilatancy_fabric=0.0), 2,
+                        fitting.LAWS[law], targets, quantities=("A", "Bc", "Bs"),
                         scale=scale, max_nfev=max_nfev, progress=progress,
                         desc=f"fit tier 2 {law} (fabric law)")
-    return fitting.fit(first.params, 2, fitting.PLANES + fitting.LAWS[law], targets, scale=scale,
-                       max_nfev=max_nfev, progress=progress, desc=f"fit tier 2 {law} (all)")
+    return fitting.fit(first.params.replace("tier2", **coupled), 2, fitting.tier2_spec(law),
+                       targets, scale=scale, max_nfev=max_nfev, progress=progress,
+                       desc=f"fit tier 2 {law} (all)")
 
 
 def objective(params: Params, tier: int, targets, scale) -> float:

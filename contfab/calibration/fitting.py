@@ -53,30 +53,38 @@ class FitParam:
     hi: float
 
 
-TIER1 = (FitParam("tier1", "phi_star_deg", 5.0, 45.0),
+TIER1 = (FitParam("tier1", "phi_star_deg", 8.0, 45.0),    # φ* >= the template's φ_min
          FitParam("tier1", "dphi_dc_deg", 0.0, 2000.0),
          FitParam("tier1", "dpsi_dc_deg", 0.0, 2000.0),
          FitParam("tier1", "c_star", 0.70, 0.90))
-PLANES = (FitParam("tier2", "a0_deg", 5.0, 45.0),
-          FitParam("tier2", "a1_deg", -30.0, 30.0),
-          FitParam("tier2", "a2_deg", -30.0, 30.0),
-          FitParam("tier2", "a3_deg", -90.0, 90.0),
-          FitParam("tier2", "b0_deg", -30.0, 30.0),
-          FitParam("tier2", "b1_deg", -30.0, 30.0),
-          FitParam("tier2", "b2_deg", -60.0, 60.0),
-          FitParam("tier2", "b3_deg", -90.0, 90.0))
-"""(a2, a3) and (-a2, a3 ± 180°) are the same law: a3 in [-90°, 90°] with a2 of either sign
-covers every one exactly once."""
+B_RATIO_CRIT = FitParam("tier2", "b_ratio_crit", 0.0, 0.27)
+"""The critical anisotropy b_c = B/A: the relaxation law's target and, for either law, the
+fabric part w b_c the cone's radius sin φ(c) - w b_c leaves to the forces. Its bound keeps
+that radius positive down to tier 1's lower clamp φ_min = 8° of the calibration's template
+(sin 8° > 0.5·0.27, at the fixed weight w = 1/2)."""
 LAWS = {
     "balance": (FitParam("tier2", "kappa_a", 0.0, 100.0),
                 FitParam("tier2", "k_c", 0.0, 200.0),
                 FitParam("tier2", "k_o", 0.0, 100.0)),
-    # z_crit <= 4 and B/A <= 0.6 keep the critical fabric inside the admissible set
-    # (z/6 + (√3/4)(B/A) z/π <= 0.998)
+    # z_crit <= 4 and B/A <= 0.27 keep the critical fabric inside the admissible set
+    # (z/6 + (√3/4)(B/A) z/π <= 0.82)
     "relaxation": (FitParam("tier2", "z_crit", 1.5, 4.0),
-                   FitParam("tier2", "b_ratio_crit", 0.0, 0.6),
+                   B_RATIO_CRIT,
                    FitParam("tier2", "relax_rate", 0.0, 200.0)),
 }
+"""The fabric law's coefficients, fitted on the fabric alone (the cone reduced to tier 1's)."""
+CONE = (FitParam("tier2", "dilatancy_fabric", 0.0, 3.0),)
+"""The cone's own coefficient: the Rowe–Taylor slope k_d of the dilatancy (≈ 0.9–1.1 on the
+DEM). The fabric weight w stays at its ``[tier2]`` value (1/2, the stress–force–fabric
+relation's): in every steady state the fabric is the critical one, where w cancels from
+the strength (w b_c + m(c) = sin φ(c)), so only transients could identify it."""
+
+
+def tier2_spec(law: str) -> tuple[FitParam, ...]:
+    """The parameters of tier 2's joint fit with ``law``: the cone's, the law's, and b_c
+    (read by the cone's radius whichever the law)."""
+    spec = CONE + LAWS[law]
+    return spec if B_RATIO_CRIT in spec else spec + (B_RATIO_CRIT,)
 
 
 def get_values(params: Params, spec: Sequence[FitParam]) -> np.ndarray:

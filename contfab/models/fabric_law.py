@@ -305,9 +305,13 @@ def one_minus_exp(x):
 
 
 @njit(**KERNEL, inline="always")
-def relaxation_step(a, bc, bs, dexx, deyy, dgxy, a_crit, b_ratio, rate, q, dq):
+def relaxation_step(a, bc, bs, dexx, deyy, dgxy, a_crit, b_ratio, rate, speed, dilation, q, dq):
     """One step of the relaxation law (law 1, module doc): ``q`` (3,) ← the fabric after it,
-    ``dq`` (4, 3) ← its derivatives in (Δεxx, Δεyy, Δγxy, c) (zero at Δεp = 0)."""
+    ``dq`` (4, 3) ← its derivatives in (Δεxx, Δεyy, Δγxy, c) (zero at Δεp = 0).
+
+    The rate is k_eff = (k⁻² + (d/v)²)^(-1/2) (1 + β [tr Δεp]₊/Δγs): d = |B_c - B_n|/A_c the
+    anisotropy's distance from its target at the step's start (v = ``speed``; inf gives
+    k_eff = k), β = ``dilation`` the acceleration by dilation."""
     dx = 0.5 * (dexx - deyy)
     dy = 0.5 * dgxy
     r = hypot(dx, dy)
@@ -318,29 +322,61 @@ def relaxation_step(a, bc, bs, dexx, deyy, dgxy, a_crit, b_ratio, rate, q, dq):
         q[2] = bs
         return
     dq[3, :] = 0.0      # rows 0-2 are set below
-    w = one_minus_exp(rate * 2.0 * r)
-    e = 1.0 - w          # exp(-2 k r), to round-off (it enters only the derivatives)
     # Compression axis θc: the minor principal direction of Δεp, so 2θc = angle(dx, dy) + π.
     b_crit = b_ratio * a_crit
     cx = dx / r
     cy = dy / r
     tgt = (1.0 * a_crit, -b_crit * cx, -b_crit * cy)
     cur = (1.0 * a, 1.0 * bc, 1.0 * bs)
-    # ∂w = 2k e (cx, cy); ∂(cx, cy)/∂(dx, dy) = [[cy², -cx cy], [-cx cy, cx²]] / r.
+    # ∂(cx, cy)/∂(dx, dy) = [[cy², -cx cy], [-cx cy, cx²]] / r.
     d_tgt_dx = (0.0, -b_crit * cy * cy / r, b_crit * cx * cy / r)
     d_tgt_dy = (0.0, b_crit * cx * cy / r, -b_crit * cx * cx / r)
+    # The effective rate k_eff = k_gap · f_dil and its derivatives in (dx, dy, tr).
+    k_gap = rate
+    dk_dx = 0.0
+    dk_dy = 0.0
+    if speed < np.inf and a_crit > 0.0:
+        gap_x = tgt[1] - cur[1]
+        gap_y = tgt[2] - cur[2]
+        gap = hypot(gap_x, gap_y)
+        d = gap / a_crit
+        k_gap = 1.0 / np.sqrt(1.0 / (rate * rate) + (d / speed) ** 2)
+        if gap > 0.0:
+            dk_dd = -k_gap ** 3 * d / (speed * speed)
+            dk_dx = dk_dd * (gap_x * d_tgt_dx[1] + gap_y * d_tgt_dx[2]) / (gap * a_crit)
+            dk_dy = dk_dd * (gap_x * d_tgt_dy[1] + gap_y * d_tgt_dy[2]) / (gap * a_crit)
+    tr = dexx + deyy
+    f_dil = 1.0
+    df_dx = 0.0
+    df_dy = 0.0
+    df_dtr = 0.0
+    if dilation > 0.0 and tr > 0.0:
+        # f = 1 + β tr / (2r): ∂f/∂tr = β/(2r), ∂f/∂(dx, dy) = -β tr (cx, cy) / (2r²)
+        f_dil = 1.0 + dilation * tr / (2.0 * r)
+        df_dtr = dilation / (2.0 * r)
+        df_dx = -dilation * tr * cx / (2.0 * r * r)
+        df_dy = -dilation * tr * cy / (2.0 * r * r)
+    k_eff = k_gap * f_dil
+    kx = dk_dx * f_dil + k_gap * df_dx
+    ky = dk_dy * f_dil + k_gap * df_dy
+    kt = k_gap * df_dtr
+    w = one_minus_exp(k_eff * 2.0 * r)
+    e = 1.0 - w          # exp(-2 k r), to round-off (it enters only the derivatives)
     for i in range(3):
         q[i] = cur[i] + w * (tgt[i] - cur[i])
-        ddx = 2.0 * rate * e * cx * (tgt[i] - cur[i]) + w * d_tgt_dx[i]
-        ddy = 2.0 * rate * e * cy * (tgt[i] - cur[i]) + w * d_tgt_dy[i]
-        dq[0, i] = 0.5 * ddx
-        dq[1, i] = -0.5 * ddx
+        # ∂w = e (2 k_eff ∂r + 2 r ∂k_eff), ∂r/∂(dx, dy) = (cx, cy)
+        ddx = e * (2.0 * k_eff * cx + 2.0 * r * kx) * (tgt[i] - cur[i]) + w * d_tgt_dx[i]
+        ddy = e * (2.0 * k_eff * cy + 2.0 * r * ky) * (tgt[i] - cur[i]) + w * d_tgt_dy[i]
+        dtr = e * 2.0 * r * kt * (tgt[i] - cur[i])
+        # (dx, dy, tr) = (½(Δεxx - Δεyy), ½Δγxy, Δεxx + Δεyy)
+        dq[0, i] = 0.5 * ddx + dtr
+        dq[1, i] = -0.5 * ddx + dtr
         dq[2, i] = 0.5 * ddy
 
 
 @njit(**KERNEL, inline="always")
 def fabric_step(a, bc, bs, dexx, deyy, dgxy, c, law, kappa_a, k_c, k_o, a_crit, b_ratio, rate,
-                q, dq, ws):
+                speed, dilation, q, dq, ws):
     """The fabric after the plastic increment (spin already applied).
 
     ``q`` (3,) ← (A, Bc, Bs); ``dq`` (4, 3) ← ∂q/∂(Δεxx, Δεyy, Δγxy, c), through the
@@ -352,7 +388,7 @@ def fabric_step(a, bc, bs, dexx, deyy, dgxy, c, law, kappa_a, k_c, k_o, a_crit, 
     law 1's whole step (measured), and the tier-2 update makes about six per point.
     """
     if law == LAW_RELAXATION:
-        relaxation_step(a, bc, bs, dexx, deyy, dgxy, a_crit, b_ratio, rate, q, dq)
+        relaxation_step(a, bc, bs, dexx, deyy, dgxy, a_crit, b_ratio, rate, speed, dilation, q, dq)
     else:
         _balance_step(a, bc, bs, dexx, deyy, dgxy, c, kappa_a, k_c, k_o, q, dq, ws)
     # The margin is non-increasing in B (each term's rounding is monotone), so where it holds
@@ -442,7 +478,8 @@ def _chain_projection(a, bc, bs, q, dq):
 
 
 @njit(cache=True, error_model="numpy")
-def drive_fabric(q0, dstrain_p, dspin, c, law, kappa_a, k_c, k_o, a_crit, b_ratio, rate):
+def drive_fabric(q0, dstrain_p, dspin, c, law, kappa_a, k_c, k_o, a_crit, b_ratio, rate, speed,
+                 dilation):
     """Run the fabric law alone along prescribed plastic increments (for studies and tests).
 
     ``q0`` (3,) initial (A, Bc, Bs); ``dstrain_p`` (n, 3) Voigt plastic increments;
@@ -460,6 +497,6 @@ def drive_fabric(q0, dstrain_p, dspin, c, law, kappa_a, k_c, k_o, a_crit, b_rati
         bc, bs = rotate_fabric(q[1], q[2], dspin[i])
         projected += fabric_step(q[0], bc, bs, dstrain_p[i, 0], dstrain_p[i, 1],
                                  dstrain_p[i, 2], c[i], law, kappa_a, k_c, k_o, a_crit,
-                                 b_ratio, rate, q, dq, work)
+                                 b_ratio, rate, speed, dilation, q, dq, work)
         out[i + 1, :] = q
     return out, projected

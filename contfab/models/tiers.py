@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dem.threads import numba_threads
-from contfab.models import cone, fabric_model
+from contfab.models import cone, fabric_cone
 from contfab.params import Params, ParamError
 
 STATE_NAMES: dict[int, tuple[str, ...]] = {
@@ -43,7 +43,7 @@ fabric state (docs/theory.md §2)."""
 KERNELS = {
     0: cone.update_points_tier0,
     1: cone.update_points_tier1,
-    2: fabric_model.update_points,
+    2: fabric_cone.update_points,
 }
 """The numba kernel of each available tier."""
 
@@ -52,7 +52,7 @@ PARALLEL_MIN_POINTS = 4096
 (tens of µs, up to ms on a loaded machine) than updating a few thousand points."""
 
 STATUS_NAMES = {cone.STATUS_ELASTIC: "elastic", cone.STATUS_FACE: "plastic",
-                cone.STATUS_APEX: "apex", fabric_model.STATUS_PROJECTED: "fabric projected",
+                cone.STATUS_APEX: "apex", fabric_cone.STATUS_PROJECTED: "fabric projected",
                 cone.STATUS_FAILED: "failed"}
 
 

@@ -3,18 +3,15 @@
 Two ingredients:
 
 * **Measured bounds** (:data:`TABLE_FILE`, a small CSV in the package): per loading class
-  ("monotonic", "reversal") and model (tier 0, tier 1, tier 2 with each fabric law), the
-  error of R/P against the DEM and the cost per material-point increment. The errors come
-  from the calibration campaign of the shipped parameters (``contfab calibrate``: N = 1000,
-  3 seeds per path; its ``errors.csv``, kept as ``docs/calibration/errors.csv``),
-  :func:`table_from_calibration`: for "monotonic" the largest RMS R/P error over the path
-  among the monotonic paths (:data:`MONOTONIC_PATHS`); for "reversal" the largest RMS R/P
-  error over the first 0.1 strain after the reversal or change of direction
-  (``rms_transient``) among :data:`REVERSAL_PATHS` — the part of such a path where the
-  models differ. The cost is CPU µs per increment of the material-point driver on the
-  class's path (:func:`measure_costs`). Each model row names its parameter file (the
-  shipped defaults, or the calibration's fit of the other fabric law, shipped beside them
-  in ``contfab/data``); both files share the tier-0/1 sections.
+  ("monotonic", "reversal") and model tier, the error of R/P against the DEM and the cost per
+  material-point increment, all with the shipped parameters. The errors come from the DEM
+  runs of tier 2's transients (N = 1000, 3 seeds per path and density), written by
+  ``contfab transients RUN_DIR... --auto-table FILE``
+  (:func:`contfab.calibration.transients.table_from_transients`): for "monotonic" the largest
+  RMS R/P error over the biaxial paths; for "reversal" the largest RMS R/P error over the
+  first 0.2 strain after a reversal or change of direction — the part of such a path where
+  the models differ. The cost is CPU µs per increment of the material-point driver on the
+  class's path (:func:`measure_costs`).
 * **Indicators** of the loading each point sees (:mod:`contfab.selection.indicators`: rotation of
   the principal stress axes, load reversal, distance from the critical state), which give
   its loading class.
@@ -37,12 +34,9 @@ from contfab.params import Params, load_params
 
 TABLE_FILE = Path(__file__).resolve().parent / "data" / "tier_errors.csv"
 DATA_DIR = Path(__file__).resolve().parent.parent / "data"
-MONOTONIC_PATHS = ("biaxial", "isochoric_shear")
-REVERSAL_PATHS = ("simple_shear_reversal", "direction_change")
 MODELS = {"tier 0": (0, "default_params.toml"), "tier 1": (1, "default_params.toml"),
-          "tier 2 relaxation": (2, "default_params.toml"),
-          "tier 2 balance": (2, "params_tier2_balance.toml")}
-"""Model name of the calibration report -> (tier, parameter file in contfab/data)."""
+          "tier 2": (2, "default_params.toml")}
+"""Model name -> (tier, parameter file in contfab/data)."""
 COST_PATHS = {"monotonic": "biaxial", "reversal": "simple_shear_reversal"}
 
 
@@ -123,32 +117,6 @@ def params_for(base: Params, choice: Choice) -> Params:
                             f"measured bound of {choice.model} does not apply")
     return Params(base.tier, {**base.sections, "tier2": other.tier2},
                   f"{base.source} with [tier2] of {choice.params_file}")
-
-
-def table_from_calibration(errors_csv: str | Path, costs: Mapping[tuple[str, str], float],
-                           table: str | Path = TABLE_FILE) -> Path:
-    """Rebuild :data:`TABLE_FILE` from a calibration's ``errors.csv`` (module doc) and the
-    costs {(loading, model): µs} of :func:`measure_costs`."""
-    from dem.fileio import write_csv
-
-    worst: dict[tuple[str, str], float] = {}
-    with open(errors_csv, newline="") as fh:
-        for r in csv.DictReader(fh):
-            if r["quantity"] != "RP" or r["model"] not in MODELS or r["role"] == "reference":
-                continue
-            loading = ("monotonic" if any(r["path"].startswith(p) for p in MONOTONIC_PATHS)
-                       else "reversal" if any(r["path"].startswith(p) for p in REVERSAL_PATHS)
-                       else None)
-            if loading is None:
-                continue
-            value = float(r["rms"] if loading == "monotonic" else r["rms_transient"])
-            if not math.isfinite(value):
-                raise AutoTierError(f"{errors_csv}: {r['model']} on {r['path']} has no finite error")
-            key = (loading, r["model"])
-            worst[key] = max(worst.get(key, 0.0), value)
-    rows = [[loading, model, MODELS[model][0], MODELS[model][1], err, costs[(loading, model)]]
-            for (loading, model), err in sorted(worst.items())]
-    return write_csv(table, ("loading", "model", "tier", "params_file", "error_RP", "cost_us"), rows)
 
 
 def measure_costs(repeats: int = 3, increment: float = 4e-3) -> dict[tuple[str, str], float]:

@@ -26,7 +26,6 @@ from contfab.tradeoff.study import Study, StudyError, run_study
 STUDIES = {
     "point_increment": "contfab.tradeoff.point_studies:increment_study",
     "point_lambda": "contfab.tradeoff.point_studies:lambda_study",
-    "tier2_planes": "contfab.tradeoff.point_studies:planes_study",
     "tier_biaxial": "contfab.tradeoff.tier_studies:biaxial_study",
     "tier_reversal": "contfab.tradeoff.tier_studies:reversal_study",
     "dem_size": "contfab.tradeoff.dem_studies:size_study",

@@ -1,9 +1,9 @@
-"""Continuum studies on one material point: increment size, λ, tier-2 plane-search knobs.
+"""Continuum studies on one material point: increment size and λ.
 
-Every point drives the default parameters (tier 2 with an anisotropic plane friction,
-a2 = 10°, b2 = 5° per unit B, so the fabric feeds back on the stress) along a standard
-path (:func:`contfab.material_point.run_path`). The measured curves are R/P, ε_v and
-the fabric (Bc, Bs) at the output rows; the errors against a reference curve x* are
+Every point drives the default parameters (tier 2, whose cone follows the fabric, so the
+fabric feeds back on the stress) along a standard path
+(:func:`contfab.material_point.run_path`). The measured curves are R/P, ε_v and the
+fabric (Bc, Bs) at the output rows; the errors against a reference curve x* are
 
     R/P: max_τ |R/P - R/P*|,   ε_v: max_τ |ε_v - ε_v*|,   fabric: max_τ |(Bc, Bs) - (Bc, Bs)*|_∞ / A*
 
@@ -13,10 +13,6 @@ the fabric (Bc, Bs) at the output rows; the errors against a reference curve x* 
   first order in Δτ: x* = 2 x(h) - x(2h).
 * ``point_lambda``: the rigid-plastic limit from the two stiffest runs, the regularization
   error being ∝ 1/λ: x* = (λ2 x2 - λ1 x1) / (λ2 - λ1).
-* ``tier2_planes``: the run with the sharpest smooth maximum and the finest plane grid
-  (listed in the notes, not in the table: its error is zero by definition). The sharpness β
-  is a model choice (a smooth max over the two conjugate families) as much as a numerical
-  knob: the study shows how far the response moves with it.
 
 Cost: microseconds of CPU time per increment (per material-point step); the table's times
 are the whole path.
@@ -32,17 +28,13 @@ from contfab.params import default_params, default_params_digest
 from contfab.tradeoff.study import Clock, Study
 
 QUANTITIES = ("RP", "eps_v", "fabric")
-ANISOTROPY = {"a2_deg": 10.0, "b2_deg": 5.0}
 
 
 def run_point(study: Study, point: dict) -> dict:
     """One material-point run of the study's path with the point's knobs."""
-    params = default_params().with_tier(2).replace("tier2", **ANISOTROPY)
+    params = default_params().with_tier(2)
     if "lam" in point:
         params = params.replace("regularization", lam=point["lam"])
-    planes = {k: point[k] for k in ("sharpness", "n_search") if k in point}
-    if planes:
-        params = params.replace("tier2", **planes)
     increment = point.get("increment", mp.DEFAULT_INCREMENT)
     _compiled(study.settings["path"])
     with Clock() as clock:
@@ -78,10 +70,10 @@ def _combine(a: dict, b: dict, wa: float, wb: float) -> dict:
     return out
 
 
-def _rows(study: Study, points, results, reference, skip=()) -> list[dict]:
+def _rows(study: Study, points, results, reference) -> list[dict]:
     return [{"knobs": {k: p[k] for k in study.knobs}, **{k: r[k] for k in ("wall_s", "cpu_s", "cost")},
              "errors": curve_errors(r["values"], reference)}
-            for i, (p, r) in enumerate(zip(points, results)) if i not in skip]
+            for p, r in zip(points, results)]
 
 
 def _order(errors: list[float], knob: list[float]) -> float:
@@ -117,18 +109,8 @@ def evaluate_lambda(study, points, results):
     return rows, notes
 
 
-def evaluate_planes(study, points, results):
-    key = [(p["sharpness"], p["n_search"]) for p in points]
-    iref = key.index(max(key))
-    rows = _rows(study, points, results, results[iref]["values"], skip=(iref,))
-    notes = {"reference": f"sharpness {key[iref][0]:g}, n_search {key[iref][1]:g} "
-                          f"(CPU {results[iref]['cpu_s']:.3g} s)",
-             "path": study.settings["path"]}
-    return rows, notes
-
-
 def increment_study(fast: bool) -> Study:
-    h = [1.6e-2, 8e-3, 4e-3, 2e-3] if fast else [3.2e-2 / 2**k for k in range(8)]
+    h = [4e-3, 2e-3, 1e-3, 5e-4] if fast else [3.2e-2 / 2**k for k in range(10)]
     return Study(
         name="point_increment", knobs=("increment",),
         description="material-point increment size Δτ_max (tier 2, simple shear with reversal)",
@@ -151,21 +133,4 @@ def lambda_study(fast: bool) -> Study:
         default={"lam": default_params().regularization.lam},
         quantities=QUANTITIES, cost_unit="CPU µs per increment",
         error_meaning="max deviation from the λ→∞ extrapolated curve",
-        settings={"path": "simple_shear_reversal", "parameters": default_params_digest()})
-
-
-def planes_study(fast: bool) -> Study:
-    betas = [12.5, 50.0, 200.0] if fast else [6.25, 12.5, 25.0, 50.0, 100.0, 200.0, 400.0]
-    grids = [4, 16] if fast else [2, 4, 8, 16, 32]
-    d = default_params().tier2
-    return Study(
-        name="tier2_planes", knobs=("sharpness", "n_search"),
-        description="tier 2 smooth-max sharpness β and plane-search grid (planes per family), "
-                    "simple shear with reversal",
-        points=tuple({"sharpness": b, "n_search": g, "increment": 4e-3 if fast
-                      else mp.DEFAULT_INCREMENT} for b in betas for g in grids),
-        run_point=run_point, evaluate=evaluate_planes,
-        default={"sharpness": d.sharpness, "n_search": d.n_search},
-        quantities=QUANTITIES, cost_unit="CPU µs per increment",
-        error_meaning="max deviation from the sharpest, finest run",
         settings={"path": "simple_shear_reversal", "parameters": default_params_digest()})
