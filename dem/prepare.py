@@ -144,10 +144,12 @@ def _run_until_relaxed(state, dyn, control, p_target, max_steps, info, progress,
     ``quench_every`` > 0 the fluctuation velocities and spins are set to zero every
     ``quench_every`` steps (after the check)."""
     chunk = quench_every if quench_every > 0 else CHECK_EVERY
+    done = 0             # steps of this call (info.steps may start anywhere)
     while info.steps < max_steps:
         advance(state, dyn, chunk, control)
         info.steps += chunk
-        if info.steps % CHECK_EVERY == 0:
+        done += chunk
+        if done % CHECK_EVERY == 0:
             if progress is not None:
                 progress(info)
             if relaxed(state, dyn.law, p_target, info, force_tol):
