@@ -49,7 +49,8 @@ DISTINCT = {
               "phi_min_deg": 6.5, "phi_max_deg": 61.0},
     "tier2": {"fabric_weight": 0.45, "dilatancy_fabric": 1.3,
               "fabric_law": "relaxation", "kappa_a": 3.5, "k_c": 17.0, "k_o": 11.0,
-              "z_crit": 3.3, "b_ratio_crit": 0.2, "relax_rate": 12.0},
+              "z_crit": 3.3, "b_ratio_crit": 0.2, "relax_rate": 12.0, "fabric_speed": 4.5,
+              "fabric_dilation": 30.0},
     "initial": {"c0": 0.8},
 }
 E_REG = 200.0 * 3.0                                   # lambda * p_ref
@@ -63,7 +64,8 @@ EXPECTED = {
     1: TIER1_VALUES,
     2: {**TIER1_VALUES, "FABRIC_WEIGHT": 0.45, "DILATANCY_FABRIC": 1.3,
         "FABRIC_LAW": 1.0, "KAPPA_A": 3.5, "K_C": 17.0, "K_O": 11.0,
-        "A_CRIT": 3.3 / math.pi, "B_RATIO_CRIT": 0.2, "RELAX_RATE": 12.0},
+        "A_CRIT": 3.3 / math.pi, "B_RATIO_CRIT": 0.2, "RELAX_RATE": 12.0, "FABRIC_SPEED": 4.5,
+        "FABRIC_DILATION": 30.0},
 }
 """Each tier's array by offset name: what the kernels read at ``prm[NAME]``."""
 

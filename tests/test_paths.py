@@ -5,7 +5,7 @@ import pytest
 from dem.paths import PathError, StopCondition, load_path, parse_path, standard_paths
 
 STANDARD = ["axes_rotation", "biaxial", "direction_change", "isochoric_shear", "isotropic_compression",
-            "proportional_strain", "simple_shear_reversal", "stress_probes"]
+            "proportional_strain", "shear_cycles", "simple_shear_reversal", "stress_probes"]
 
 
 def test_standard_paths_ship_and_parse():

@@ -38,9 +38,10 @@ def test_bilinear_response_gives_its_normal_and_flow_exactly():
 def test_model_probes_from_a_state_on_the_yield_surface_give_the_cone_angles(tier):
     """A loose point (c0 = 0.79 < c* = 0.81: contractant, hardening) loaded to 2% axial
     strain, then probed from that state (run_family(start=...)): tier 1, and tier 2 reduced
-    to it (isotropic planes), give δ = angle(n) - angle(m) of the cone at φ(c), ψ(c)."""
-    pre = mp.run_path(PRELOAD, PARAMS, tier, state0={"c": 0.79})
-    runs = mp.run_family(PROBES, PARAMS, tier, start=pre)
+    to it (w = k_d = 0: the cone's axis at the origin, the fabric's dilatancy off), give δ = angle(n) - angle(m) of the cone at φ(c), ψ(c)."""
+    params = PARAMS.replace("tier2", fabric_weight=0.0, dilatancy_fabric=0.0)   # tier 2 = tier 1
+    pre = mp.run_path(PRELOAD, params, tier, state0={"c": 0.79})
+    runs = mp.run_family(PROBES, params, tier, start=pre)
     assert all(r["sxx"][0] == pre["sxx"][-1] and r["tau"][0] == 0.0 for r in runs)
     a = analyse(probe_response([history_of(r) for r in runs]))
     t1 = PARAMS.tier1

@@ -187,8 +187,8 @@ def add_arguments(p) -> None:
     p.add_argument("--tier", choices=("1", "2", "auto"), default="1",
                    help="model tier (default 1); auto: the cheapest model per point whose "
                         "measured bound meets --tolerance (contfab.fem.auto)")
-    p.add_argument("--tolerance", type=float, default=0.12,
-                   help="auto: tolerated RMS error of R/P against the DEM (default 0.12)")
+    p.add_argument("--tolerance", type=float, default=0.09,
+                   help="auto: tolerated RMS error of R/P against the DEM (default 0.09)")
     p.add_argument("--compare", action="store_true",
                    help="with --tier auto: also run every point at tier 2 (the reversal class's "
                         "model) and at tier 1, and report the differences and the saving")

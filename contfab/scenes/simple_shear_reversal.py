@@ -180,8 +180,8 @@ def add_arguments(p) -> None:
     p.add_argument("--tiers", nargs="+", default=["1", "2"], choices=("1", "2", "auto"),
                    help="model tiers to run (default 1 and 2); auto: the cheapest model per "
                         "point whose measured bound meets --tolerance (contfab.fem.auto)")
-    p.add_argument("--tolerance", type=float, default=0.12,
-                   help="auto: tolerated RMS error of R/P against the DEM (default 0.12)")
+    p.add_argument("--tolerance", type=float, default=0.09,
+                   help="auto: tolerated RMS error of R/P against the DEM (default 0.09)")
     p.add_argument("--element", choices=sorted(ELEMENTS), default="P2")
     p.add_argument("--nx", type=int, default=2, help="elements across the layer (default 2)")
     p.add_argument("--ny", type=int, default=2, help="elements through the layer (default 2)")
