@@ -25,11 +25,11 @@ NEWTON = NewtonOptions(tol=2e-3, tol_stall=5e-3, max_iter=12, line_search=0, spi
                        extrapolate=False)
 TABLE = {"monotonic": [{"model": "tier 1", "tier": 1, "params_file": "default_params.toml",
                         "error": 0.04, "cost": 80.0},
-                       {"model": "tier 2 relaxation", "tier": 2,
+                       {"model": "tier 2", "tier": 2,
                         "params_file": "default_params.toml", "error": 0.03, "cost": 110.0}],
          "reversal": [{"model": "tier 1", "tier": 1, "params_file": "default_params.toml",
                        "error": 0.13, "cost": 60.0},
-                      {"model": "tier 2 relaxation", "tier": 2,
+                      {"model": "tier 2", "tier": 2,
                        "params_file": "default_params.toml", "error": 0.09, "cost": 90.0}]}
 
 
@@ -47,11 +47,11 @@ def test_model_choice_follows_the_measured_bounds():
     choice, switching = model_choice(0.15, TABLE)
     assert (choice.model, switching) == ("tier 1", False)
     choice, switching = model_choice(0.1, TABLE)
-    assert (choice.model, switching) == ("tier 2 relaxation", False)
+    assert (choice.model, switching) == ("tier 2", False)
     choice, switching = model_choice(0.05, TABLE)
     assert (choice.model, switching) == ("tier 1", True)
     choice, switching = model_choice(0.035, TABLE)
-    assert (choice.model, switching) == ("tier 2 relaxation", True)
+    assert (choice.model, switching) == ("tier 2", True)
     assert model_choice(0.02, TABLE) == (None, True)
 
 
