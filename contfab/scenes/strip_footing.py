@@ -69,6 +69,10 @@ points flip between elastic and plastic from one Newton iterate to the next, lea
 residual ∝ the step (2e-7 at 1e-6 of the push, 3e-5 at 1e-4; docs/fem_validation.md §5),
 so these steps need to be small; the associated runs never get near it."""
 NO_REFERENCE = "no published reference for these angles and this flow rule"
+CALIBRATED_ELEMENT = "P2"
+"""Default element of a tier >= 1 footing (and its tier-0 check), on mesh level 1: the
+calibrated run's Newton takes 2-3x the steps and iterations of the associated one, and
+P3 would make the main job several minutes long (docs/fem_validation.md §8)."""
 CALIBRATED_SETTLEMENT = 0.3
 """Default push of a tier >= 1 footing, in B: far enough for a dense start to soften to
 the critical state under the footing."""
@@ -115,6 +119,12 @@ def mechanism_size(phi_deg: float, b: float = B_HALF) -> tuple[float, float]:
     return width, depth
 
 
+def check_level(level: int) -> None:
+    """A ParamError unless 1 <= ``level`` <= 8."""
+    if not 1 <= level <= 8:
+        raise ParamError(f"mesh level = {level} is outside the accepted range [1, 8]")
+
+
 def footing_mesh(phi_deg: float, level: int, kind: str = "tri", factor: str = "Nq"):
     """Structured mesh resolving the mechanism box, coarse outside it.
 
@@ -126,8 +136,7 @@ def footing_mesh(phi_deg: float, level: int, kind: str = "tri", factor: str = "N
     by the resolution of the whole mechanism (its slip lines), not by the edge
     singularity: grading harder toward the edge made N_q worse at equal DOFs.
     """
-    if not 1 <= level <= 8:
-        raise ParamError(f"mesh level = {level} is outside the accepted range [1, 8]")
+    check_level(level)
     width, depth = (MECHANISM_SCALE[factor] * v for v in mechanism_size(phi_deg))
     box_w, box_d = 1.1 * width, 1.2 * depth
     xs = np.concatenate((meshes.graded(0.0, B_HALF, 6 * level, 0.5),
@@ -253,8 +262,9 @@ def add_arguments(p) -> None:
     p.add_argument("--psi", nargs="+", default=None,
                    help="tier 0: dilatancy angle(s) in degrees, or 'phi' for associated flow "
                         "(default); several give the drop of the factor with psi")
-    p.add_argument("--element", choices=sorted(ELEMENTS), nargs="+", default=["P3"],
-                   help="element famil(y/ies) (default P3: the element study's choice)")
+    p.add_argument("--element", choices=sorted(ELEMENTS), nargs="+", default=None,
+                   help="element famil(y/ies) (default: tier 0, P3, the element study's choice; "
+                        f"tiers >= 1, {CALIBRATED_ELEMENT}, a minute's run with its check)")
     p.add_argument("--level", type=int, nargs="+", default=[1], help="mesh density level(s), 1..8")
     p.add_argument("--lam", type=float, default=None, help="override the regularization lambda")
     p.add_argument("--apex-stiffness", type=float, default=1e-9,
@@ -285,7 +295,14 @@ def run(args) -> CaseResult:
         args.element, args.level = ["P2"], [1]
     if args.tier is None:
         args.tier = "0" if args.phi is not None or args.psi is not None else "1"
+    if args.settlement is not None and not 0.0 < args.settlement <= 1.0:
+        raise ParamError(f"settlement = {args.settlement:g} B is outside the accepted range (0, 1]")
+    NewtonOptions(relaxation_time=args.relaxation_time)     # its range, before any run
+    for level in args.level:
+        check_level(level)
     tier = material_options.tier_arg(args.tier)
+    if args.element is None:
+        args.element = ["P3"] if tier == 0 else [CALIBRATED_ELEMENT]
     if tier == 0:
         return run_tier0(args, params)
     if args.phi is not None or args.psi is not None:
