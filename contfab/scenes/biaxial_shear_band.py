@@ -10,7 +10,10 @@ a structured mesh's diagonals pull the band to their own angle (45° measured on
 square-cell union-jack mesh). Initial stress -p0 I, p_ref = p0.
 
 Dilation lowers c, φ(c) falls toward φ*: the response peaks and softens, the
-deformation localizes. The band angle θ to the minor principal stress direction (the
+deformation localizes. ``--tier 2`` and ``auto`` run the same way; ``--tier 0`` holds the
+initial state's angles φ(c0), ψ(c0) constant (no softening, and no imperfection: tier 0
+has no c to lower). ``--c0`` gives the initial density as a packing fraction instead of
+``--dense`` (:mod:`contfab.scenes.material_options`). The band angle θ to the minor principal stress direction (the
 horizontal) is measured from the principal axis of the elements carrying the
 plastic shear strain of the last tenth of the push (weighted by it), and compared
 with Coulomb π/4 + φ/2, Roscoe π/4 + ψ/2 and Arthur π/4 + (φ + ψ)/4 at the peak state
