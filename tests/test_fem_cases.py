@@ -93,11 +93,13 @@ def test_newton_converges_quadratically_on_the_collapse_plateau(footing):
 def test_calibrated_tier1_footing_converges_to_0p3_b_between_the_tier0_bounds(footing):
     """The main job's calibrated material: tier 1 from the shipped dense state, non-associated
     (ψ0 < φ0), pushed by the rate-independent Newton to 0.3 B at every step. Its collapse
-    load (the curve's peak) lies between Prandtl-Reissner at the critical φ* and at φ0 =
-    φ(c0): no point's φ exceeds φ0 (ψ > 0 only dilates, lowering c), and the non-associated
-    load lies below the associated one at the same yield surface (Radenković's first
-    theorem); every point's φ stays >= φ* (ψ -> 0 at c*), and the dense peak is reached
-    before the zone has softened. Files: the VTU series with c, and the plastic zone."""
+    load (the curve's peak) lies below Prandtl-Reissner at φ0 = φ(c0): no point's φ
+    exceeds φ0 (ψ > 0 only dilates, lowering c), and the non-associated load lies below the
+    associated one with the same yield surface (Radenković's first theorem). It lies above
+    Prandtl-Reissner at the critical φ*: every point keeps φ >= φ* (ψ -> 0 at c*), and the
+    dense peak comes before the zone has softened (the theorem's lower bound, at
+    atan(sin φ*), is lower still). It softens after the peak. Files: the VTU series with c,
+    and the plastic zone."""
     code, out, folder = footing
     phi0, psi0 = tier1_initial_angles(SHIPPED.initial.c0)
     assert psi0 < phi0 - 5                                    # strongly non-associated

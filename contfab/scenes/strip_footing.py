@@ -393,9 +393,12 @@ CALIBRATED_KEYS = ("peak", "peak_settlement_over_B", "computed_end", "settlement
 def tier0_bounds(factor: str, params) -> dict:
     """The exact tier-0 (associated, constant φ) factor at the critical angle φ* and at the
     initial state's peak angle φ0 = φ(c0): N_q by Prandtl–Reissner (NaN for N_γ, which has
-    no closed form at these angles). A material whose φ moves between φ0 and φ* collapses
-    between them (a dense start softens from φ0 to φ*, a loose one hardens from φ0 to φ*),
-    and its non-associated flow only lowers the load toward the lower one."""
+    no closed form at these angles). A dense start softens from φ0 to φ*, a loose one
+    hardens from φ0 to φ*. The larger value bounds the load from above (no point's φ
+    exceeds it, and non-associated flow carries no more than associated flow with the same
+    yield surface: Radenković's first theorem); the smaller is where the load must lie
+    above but not a theorem (the second theorem's lower bound is the associated load at
+    atan(sin φ), lower still; docs/fem_validation.md §8)."""
     phi0, psi0 = material_options.initial_angles(params)
     phi_star = params.tier1.phi_star_deg
     value = prandtl_nq if factor == "Nq" else (lambda phi: math.nan)
