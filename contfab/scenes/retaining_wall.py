@@ -128,7 +128,7 @@ def solve(phi_deg: float, psi_deg: float, mode: str, element: str, level: int, p
     values = result.column("K")
     tail = values[result.column("t") >= 0.8]
     strongest = int(np.argmin(values) if mode == "active" else np.argmax(values))
-    return {"mode": mode, "phi": phi_deg, "reference": reference, "computed": values[-1],
+    return {"mode": mode, "phi": phi_deg, "reference": reference, "computed": float(values[-1]),
             "strongest": float(values[strongest]),
             "strongest_displacement": float(result.column("wall_displacement")[strongest]),
             "plateau_drift": float(tail[-1] / tail[0] - 1.0), "dofs": disc.ndofs,

@@ -58,7 +58,8 @@ from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver, Stage
 from contfab.params import ParamError
 from dem.fileio import write_csv
 
-DESCRIPTION = "rigid rough strip footing: N_q (Prandtl-Reissner) and N_gamma (Martin 2005)"
+DESCRIPTION = ("rigid rough strip footing on the calibrated material (any tier, dense or loose) "
+               "beside its tier-0 check: N_q (Prandtl-Reissner), N_gamma (Martin 2005)")
 
 B_HALF = 1.0
 MECHANISM_SCALE = {"Nq": 1.0, "Ngamma": 0.6}
