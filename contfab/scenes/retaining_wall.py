@@ -48,7 +48,8 @@ from contfab.fem.material import TierMaterial
 from contfab.fem.solver import NewtonOptions, Solver, Stage
 from contfab.params import ParamError
 
-DESCRIPTION = "smooth retaining wall: active and passive earth pressure against Rankine"
+DESCRIPTION = ("smooth retaining wall: active and passive earth pressure against Rankine, or on the "
+               "calibrated material (any tier, dense or loose)")
 
 HEIGHT = 1.0
 CALIBRATED_DISPLACEMENT = 0.1
