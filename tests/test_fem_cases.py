@@ -44,9 +44,18 @@ def test_the_reference_formulas_match_their_published_tables():
     assert rankine_ka(30.0) == pytest.approx(1 / 3, rel=1e-12)
 
 
+def tier1_initial_angles(c0: float) -> tuple[float, float]:
+    """(φ0, ψ0) [deg] of tier 1's linear laws about c* at c0, from the shipped parameters."""
+    t1 = SHIPPED.tier1
+    phi0 = min(max(t1.phi_star_deg + t1.dphi_dc_deg * (c0 - t1.c_star), t1.phi_min_deg),
+               t1.phi_max_deg)
+    return phi0, max(min(t1.dpsi_dc_deg * (c0 - t1.c_star), phi0), -phi0)
+
+
 @pytest.fixture(scope="module")
 def footing(tmp_path_factory):
-    """One ``contfab case strip_footing --fast --json`` run (the CLI path), shared."""
+    """One ``contfab case strip_footing --fast --json`` run (the CLI path, the main job at
+    the test preset: tier 1 on the shipped parameters beside the tier-0 check), shared."""
     out = tmp_path_factory.mktemp("strip_footing")
     text = io.StringIO()
     with contextlib.redirect_stdout(text):
@@ -54,27 +63,64 @@ def footing(tmp_path_factory):
     return code, json.loads(text.getvalue()), out
 
 
+CHECK = f"tier-0 check N_q(phi*={SHIPPED.tier1.phi_star_deg:.2f}, associated)"
+
+
 def test_strip_footing_nq_fast_within_4_percent_and_json(footing):
-    """N_q (the shipped φ = φ* = 15.9°, associated, P2 level 1) against Prandtl-Reissner:
+    """The tier-0 check, N_q at φ* = 15.9° (associated, P2 level 1), against Prandtl-Reissner:
     displacement FE bounds the collapse load from above, within 4 % on this mesh."""
     code, out, folder = footing
     assert code == 0
-    reference = prandtl_reissner_nq(PHI)
-    assert 0 < out["computed"] / reference - 1 < 0.04, (out["computed"], reference)
+    check = {f["name"]: f for f in out["figures"]}[CHECK]
+    reference = prandtl_reissner_nq(SHIPPED.tier1.phi_star_deg)
+    assert 0 < check["computed"] / reference - 1 < 0.04, (check["computed"], reference)
     names = {p.name for p in folder.iterdir()}
     stem = f"strip_footing_Nq_phi{PHI:g}_psi{PHI:g}"
     assert {f"{stem}.pvd", f"{stem}_curve.csv", f"{stem}_plastic_zone.png"} <= names
-    note = out[f"N_q(phi={PHI:g}, psi={PHI:g})"]
+    note = out[CHECK]
     assert abs(note["plateau_drift"]) < 1e-3 and note["median_newton"] < 8
 
 
 def test_newton_converges_quadratically_on_the_collapse_plateau(footing):
     """The last step of the footing push (at collapse): the error order of the last
     three residuals is >= 1.5 (2 for Newton), ending below the 1e-8 tolerance."""
-    r = footing[1][f"N_q(phi={PHI:g}, psi={PHI:g})"]["last_step_residuals"]
+    r = footing[1][CHECK]["last_step_residuals"]
     assert r[-1] <= 1e-8 and len(r) >= 3
     order = math.log(r[-1] / r[-2]) / math.log(r[-2] / r[-3])
     assert order >= 1.5, r
+
+
+def test_calibrated_tier1_footing_converges_to_0p3_b_between_the_tier0_bounds(footing):
+    """The main job's calibrated material: tier 1 from the shipped dense state, non-associated
+    (ψ0 < φ0), pushed by the rate-independent Newton to 0.3 B at every step. Its collapse
+    load (the curve's peak) lies below Prandtl-Reissner at φ0 = φ(c0): no point's φ
+    exceeds φ0 (ψ > 0 only dilates, lowering c), and the non-associated load lies below the
+    associated one with the same yield surface (Radenković's first theorem). It lies above
+    Prandtl-Reissner at the critical φ*: every point keeps φ >= φ* (ψ -> 0 at c*), and the
+    dense peak comes before the zone has softened (the theorem's lower bound, at
+    atan(sin φ*), is lower still). It softens after the peak. Files: the VTU series with c,
+    and the plastic zone."""
+    code, out, folder = footing
+    phi0, psi0 = tier1_initial_angles(SHIPPED.initial.c0)
+    assert psi0 < phi0 - 5                                    # strongly non-associated
+    head = out["figures"][0]
+    assert head["reference"] is None and "no published reference" in head["source"]
+    note = out[head["name"]]
+    assert note["settlement_over_B"] == pytest.approx(0.3, rel=1e-9)
+    assert note["solution"].startswith("rate-independent Newton")
+    low, high = prandtl_reissner_nq(SHIPPED.tier1.phi_star_deg), prandtl_reissner_nq(phi0)
+    assert low < head["computed"] < high, (low, head["computed"], high)
+    assert note["computed_end"] < head["computed"]            # the dense footing softens
+    stem = f"strip_footing_Nq_tier1_c{SHIPPED.initial.c0:.4f}"
+    names = {p.name for p in folder.iterdir()}
+    assert {f"{stem}.pvd", f"{stem}_curve.csv", f"{stem}_plastic_zone.png"} <= names
+    frames = sorted(folder.glob(f"{stem}_0*.vtu"))
+    assert "c" in meshio_cell_fields(frames[-1])
+
+
+def meshio_cell_fields(path) -> set:
+    import meshio
+    return set(meshio.read(path).cell_data)
 
 
 def test_retaining_wall_fast_within_3_percent_of_rankine():
@@ -138,6 +184,14 @@ def test_band_references_are_roscoe_arthur_coulomb_of_the_peak_state_never_the_a
     (["case", "strip_footing", "--element", "P2", "--relaxation-time", "-1", "--out", "none"],
      "relaxation_time = -1.0 is outside the accepted range"),
     (["case", "retaining_wall", "--phi", "95", "--out", "none"], "phi_deg = 95 is outside"),
+    (["case", "strip_footing", "--c0", "dense-ish", "--out", "none"],
+     "c0 = 'dense-ish' is not a packing fraction"),
+    (["case", "retaining_wall", "--tier", "1", "--c0", "1.5", "--out", "none"],
+     "c0 = 1.5 is outside the accepted range (0, 1)"),
+    (["case", "strip_footing", "--tier", "1", "--phi", "30", "--out", "none"],
+     "--phi/--psi set tier 0's constant angles"),
+    (["case", "retaining_wall", "--tier", "2", "--displacement", "2", "--out", "none"],
+     "displacement = 2 H is outside the accepted range"),
     (["case", "biaxial_shear_band", "--dense", "0.5", "--out", "none"], "dense = 0.5"),
     (["case", "simple_shear_reversal", "--dgamma", "0.5", "--out", "none"],
      "dgamma = 0.5 is outside the accepted range (0, 0.1]"),

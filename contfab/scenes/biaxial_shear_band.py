@@ -10,7 +10,10 @@ a structured mesh's diagonals pull the band to their own angle (45° measured on
 square-cell union-jack mesh). Initial stress -p0 I, p_ref = p0.
 
 Dilation lowers c, φ(c) falls toward φ*: the response peaks and softens, the
-deformation localizes. The band angle θ to the minor principal stress direction (the
+deformation localizes. ``--tier 2`` and ``auto`` run the same way; ``--tier 0`` holds the
+initial state's angles φ(c0), ψ(c0) constant (no softening, and no imperfection: tier 0
+has no c to lower). ``--c0`` gives the initial density as a packing fraction instead of
+``--dense`` (:mod:`contfab.scenes.material_options`). The band angle θ to the minor principal stress direction (the
 horizontal) is measured from the principal axis of the elements carrying the
 plastic shear strain of the last tenth of the push (weighted by it), and compared
 with Coulomb π/4 + φ/2, Roscoe π/4 + ψ/2 and Arthur π/4 + (φ + ψ)/4 at the peak state
@@ -35,7 +38,9 @@ from pathlib import Path
 
 import numpy as np
 
+from contfab.scenes import material_options
 from contfab.scenes.case import CaseResult, Figure, failure_note
+from contfab.scenes.material_options import initial_angles
 from contfab.fem import analysis, loads
 from contfab.fem import mesh as meshes
 from contfab.fem.assembly import Discretization
@@ -46,12 +51,13 @@ from contfab.fem.output import plot_field
 from contfab.fem.material import TierMaterial
 from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver, Stage
 from contfab.material_point import run_path
-from contfab.models.cone import tier1_angles
 from contfab.params import ParamError, default_params, load_params
 
 DESCRIPTION = "dense biaxial specimen, rough platens: peak, softening, shear-band angle"
 
 WIDTH, HEIGHT = 1.0, 2.5
+DEFAULT_DENSE = 0.03
+"""c0 - c* of the default dense specimen."""
 SPOT = (0.0, 0.3 * HEIGHT, 0.15 * WIDTH, 0.01)
 """Imperfection: centre x, y, radius, and how much lower its c is."""
 
@@ -94,8 +100,11 @@ def solve(params, element: str, level: int, dense: float, strain: float, out: Pa
     p0 = 1.0
     c_star = params.tier1.c_star
     mixed = np.ndim(tier) > 0
-    params = params.with_tier(int(np.max(tier))).replace("regularization", p_ref=p0) \
-        .replace("initial", c0=c_star + dense)
+    params = params.replace("regularization", p_ref=p0).replace("initial", c0=c_star + dense)
+    phi0, psi0 = initial_angles(params)
+    if np.max(tier) == 0:     # the initial state's angles, held constant
+        params = params.replace("tier0", phi_deg=phi0, psi_deg=psi0)
+    params = params.with_tier(int(np.max(tier)))
     if lam is not None:
         params = params.replace("regularization", lam=lam)
     h = WIDTH / (8 * level)
@@ -110,8 +119,8 @@ def solve(params, element: str, level: int, dense: float, strain: float, out: Pa
     state0 = material.initial_state(n)
     x, y = disc.points.T
     spot = np.hypot(x - SPOT[0], y - SPOT[1]) < SPOT[2]
-    if not homogeneous:
-        state0[spot, 1] -= SPOT[3]
+    if not homogeneous and "c" in material.state_names:
+        state0[spot, material.state_names.index("c")] -= SPOT[3]
     stress0 = np.column_stack((-p0 * np.ones(n), -p0 * np.ones(n), np.zeros(n)))
     solver = Solver(disc, material, stress0, state0, NewtonOptions())
     top = loads.boundary_dofs(disc, "top", "y")
@@ -152,16 +161,16 @@ def solve(params, element: str, level: int, dense: float, strain: float, out: Pa
     t = result.column("t")
     gp = [g for tt, g in gp_marks if tt >= 0.9 * t[-1]]
     dgp = disc.element_mean(solver.committed.state[:, 0] - gp[0])
-    c0 = c_star + dense
-    phi, psi, _, _ = tier1_angles(c0, params.array(1))
+    c_col = material.state_names.index("c") if "c" in material.state_names else None
     return {"peak": float(ratio.max()), "peak_strain": float(result.column("axial_strain")[np.argmax(ratio)]),
             "end": float(ratio[-1]), "angle": math.nan if homogeneous else band_angle(disc, dgp),
             "curve": {k: result.column(k) for k in ("axial_strain", "stress_ratio", "sin_phi_mob")},
             "params": params,
-            "phi0": math.degrees(phi), "psi0": math.degrees(psi), "dofs": disc.ndofs,
+            "phi0": phi0, "psi0": psi0, "dofs": disc.ndofs,
             "wall_s": time.perf_counter() - t0, "steps": len(result.iterations),
             "median_newton": float(np.median(result.iterations)),
-            "band_c_min": float(solver.committed.state[:, 1].min()), "files": result.files,
+            "band_c_min": math.nan if c_col is None else float(solver.committed.state[:, c_col].min()),
+            "files": result.files,
             "indicators": result.indicators, "point_updates": dict(material.point_updates)}
 
 
@@ -177,18 +186,14 @@ def add_arguments(p) -> None:
     p.add_argument("--element", choices=sorted(ELEMENTS), default="P2",
                    help="element family (default P2: the element study's choice)")
     p.add_argument("--level", type=int, default=2, help="mesh density level, 1..6")
-    p.add_argument("--dense", type=float, default=0.03,
-                   help="c0 - c* (default 0.03; > 0, or > -0.05 with --homogeneous)")
+    p.add_argument("--dense", type=float, default=None,
+                   help="c0 - c* (default 0.03; > 0, or > -0.05 with --homogeneous); "
+                        "or give c0 itself with --c0")
     p.add_argument("--strain", type=float, default=0.04, help="final axial strain (default 0.04)")
-    p.add_argument("--params", default=None, help="parameter file (default: the shipped one)")
     p.add_argument("--homogeneous", action="store_true",
                    help="smooth platens, no imperfection: the homogeneous biaxial, against the "
                         "material-point driver on the same path (no band)")
-    p.add_argument("--tier", choices=("1", "2", "auto"), default="1",
-                   help="model tier (default 1); auto: the cheapest model per point whose "
-                        "measured bound meets --tolerance (contfab.fem.auto)")
-    p.add_argument("--tolerance", type=float, default=0.09,
-                   help="auto: tolerated RMS error of R/P against the DEM (default 0.09)")
+    material_options.add_arguments(p, default_tier="1")
     p.add_argument("--compare", action="store_true",
                    help="with --tier auto: also run every point at tier 2 (the reversal class's "
                         "model) and at tier 1, and report the differences and the saving")
@@ -246,6 +251,11 @@ STUDY_KEYS = ("dofs", "peak", "peak_strain", "end", "angle", "steps", "median_ne
 
 def run(args) -> CaseResult:
     params = default_params() if args.params is None else load_params(args.params)
+    if args.dense is not None and args.c0 is not None:
+        raise ParamError("give the initial density by --dense (c0 - c*) or by --c0, not both")
+    if args.dense is None:
+        args.dense = DEFAULT_DENSE if args.c0 is None else \
+            material_options.with_c0(params, args.c0).initial.c0 - params.tier1.c_star
     if args.fast:   # the test-suite preset: P2 on the level-2 mesh (the default), because at
         # level 1 (1394 DOFs, 8 elements across) the band sits at 47 deg against Roscoe's
         # 53.7 with the calibrated parameters: too coarse to resolve it (level 2: 53.5)

@@ -5,7 +5,17 @@ on the surface y = 0 of a soil block x ∈ [0, L], y ∈ [-H, 0], with L and H s
 size of the Prandtl mechanism of φ (:func:`mechanism_size`) so that the failure zone
 stays inside. Rollers on x = 0 (symmetry) and x = L, fixed base. The footing is rigid and
 rough: its nodes move down by δ·t with ux = 0. The bearing pressure is q_u = Q/b, Q the
-reaction force on the footing (of the half model). Model tier 0 (constant φ, ψ).
+reaction force on the footing (of the half model).
+
+**Model** (``--tier``, ``--params``, ``--c0``; :mod:`contfab.scenes.material_options`).
+The default, tier 1, is the calibrated material (the parameter file's model from its
+``[initial]`` state, dense by default): φ(c), ψ(c) move with the packing fraction, and
+ψ < φ everywhere (non-associated). Its factor is the peak of the load–settlement curve,
+pushed to 0.3 B; no published value exists for it, so it is printed with the exact tier-0
+factors at the critical angle φ* and at the initial angle φ0 = φ(c0), between which it
+must lie (:func:`tier0_bounds`), beside the **tier-0 check**: the same mesh with tier 0,
+associated flow at φ*, against Prandtl–Reissner (``--no-check`` skips it). Tier 2 and
+``auto`` run the same way. ``--tier 0`` (or ``--phi``/``--psi``) runs constant angles:
 
 * ``--factor Nq``: weightless soil, surcharge q on the free surface, initial stress
   σ = -q I (in equilibrium with the surcharge and the rollers). N_q = q_u/q against
@@ -36,16 +46,20 @@ from pathlib import Path
 import numpy as np
 
 from contfab.scenes.case import CaseResult, Figure, failure_note
+from contfab.scenes import material_options
+from contfab.scenes.material_options import max_tier, point_updates
 from contfab.fem import analysis, loads
+from contfab.fem.auto import run_auto
 from contfab.fem import mesh as meshes
 from contfab.fem.assembly import Discretization
 from contfab.fem.elements import ELEMENTS
 from contfab.fem.material import TierMaterial
 from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver, Stage
-from contfab.params import ParamError, default_params, load_params
+from contfab.params import ParamError
 from dem.fileio import write_csv
 
-DESCRIPTION = "rigid rough strip footing: N_q (Prandtl-Reissner) and N_gamma (Martin 2005)"
+DESCRIPTION = ("rigid rough strip footing on the calibrated material (any tier, dense or loose) "
+               "beside its tier-0 check: N_q (Prandtl-Reissner), N_gamma (Martin 2005)")
 
 B_HALF = 1.0
 MECHANISM_SCALE = {"Nq": 1.0, "Ngamma": 0.6}
@@ -56,6 +70,13 @@ points flip between elastic and plastic from one Newton iterate to the next, lea
 residual ∝ the step (2e-7 at 1e-6 of the push, 3e-5 at 1e-4; docs/fem_validation.md §5),
 so these steps need to be small; the associated runs never get near it."""
 NO_REFERENCE = "no published reference for these angles and this flow rule"
+CALIBRATED_ELEMENT = "P2"
+"""Default element of a tier >= 1 footing (and its tier-0 check), on mesh level 1: the
+calibrated run's Newton takes 2-3x the steps and iterations of the associated one, and
+P3 would make the main job several minutes long (docs/fem_validation.md §8)."""
+CALIBRATED_SETTLEMENT = 0.3
+"""Default push of a tier >= 1 footing, in B: far enough for a dense start to soften to
+the critical state under the footing."""
 MARTIN_2005_NGAMMA_ROUGH = {30.0: 14.75}
 """Exact N_γ, rough strip footing, associated flow (Martin 2005, method of characteristics)."""
 
@@ -99,6 +120,12 @@ def mechanism_size(phi_deg: float, b: float = B_HALF) -> tuple[float, float]:
     return width, depth
 
 
+def check_level(level: int) -> None:
+    """A ParamError unless 1 <= ``level`` <= 8."""
+    if not 1 <= level <= 8:
+        raise ParamError(f"mesh level = {level} is outside the accepted range [1, 8]")
+
+
 def footing_mesh(phi_deg: float, level: int, kind: str = "tri", factor: str = "Nq"):
     """Structured mesh resolving the mechanism box, coarse outside it.
 
@@ -110,8 +137,7 @@ def footing_mesh(phi_deg: float, level: int, kind: str = "tri", factor: str = "N
     by the resolution of the whole mechanism (its slip lines), not by the edge
     singularity: grading harder toward the edge made N_q worse at equal DOFs.
     """
-    if not 1 <= level <= 8:
-        raise ParamError(f"mesh level = {level} is outside the accepted range [1, 8]")
+    check_level(level)
     width, depth = (MECHANISM_SCALE[factor] * v for v in mechanism_size(phi_deg))
     box_w, box_d = 1.1 * width, 1.2 * depth
     xs = np.concatenate((meshes.graded(0.0, B_HALF, 6 * level, 0.5),
@@ -130,8 +156,13 @@ def footing_mesh(phi_deg: float, level: int, kind: str = "tri", factor: str = "N
 def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int, params,
           out: Path | None, progress: bool, push: float = 15.0,
           apex_stiffness: float = 1e-9, dt_max: float = 0.05,
-          settlement: float | None = None, relaxation_time: float | None = None) -> dict:
+          settlement: float | None = None, relaxation_time: float | None = None,
+          tier=0) -> dict:
     """One footing analysis; returns the factor, its curve summary, Newton figures, files.
+
+    ``tier`` 0 runs the constant angles ``phi_deg``, ``psi_deg``; a tier >= 1 (or an array:
+    a tier per quadrature point) runs the model of ``params`` from its ``[initial]`` state,
+    its angles its own, ``phi_deg`` (φ0) then only sizing the mesh and ``psi_deg`` naming.
 
     ``push`` is the footing settlement in units of the elastic scale N·b/λ, or
     ``settlement`` the final settlement in units of B = 2b; ``dt_max`` the largest load
@@ -143,12 +174,17 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
     if settlement is not None and not 0.0 < settlement <= 1.0:
         raise ParamError(f"settlement = {settlement:g} B is outside the accepted range (0, 1]")
     stress_scale = 1.0     # q (N_q) or γ b (N_γ): the scene's stress unit
-    params = params.with_tier(0).replace("tier0", phi_deg=phi_deg, psi_deg=psi_deg) \
-        .replace("regularization", p_ref=stress_scale)
+    top = max_tier(tier)
+    if top == 0:
+        params = params.replace("tier0", phi_deg=phi_deg, psi_deg=psi_deg)
+    params = params.with_tier(top).replace("regularization", p_ref=stress_scale)
     lam = params.regularization.lam
     disc = Discretization(footing_mesh(phi_deg, level, ELEMENTS[element].mesh_kind, factor),
                           element)
-    material = TierMaterial(params, tier=0, apex_stiffness=apex_stiffness)
+    if np.ndim(tier):
+        material = TierMaterial(params, point_tiers=tier, apex_stiffness=apex_stiffness)
+    else:
+        material = TierMaterial(params, tier=top, apex_stiffness=apex_stiffness)
     n = disc.npoints
     stress0 = np.zeros((n, 3))
     f_dead = np.zeros(disc.ndofs)
@@ -165,7 +201,7 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
         stress0[:, 0] = k0 * gamma * y
         f_dead += loads.body_force(disc, by=-gamma)
         norm = gamma * B_HALF**2                # N_γ = q_u / (½ γ B) = Q / (γ b²)
-    reference = reference_factor(factor, phi_deg)
+    reference = reference_factor(factor, phi_deg) if top == 0 else math.nan
     solver = Solver(disc, material, stress0, material.initial_state(n),
                     NewtonOptions(relaxation_time=relaxation_time))
     dofs = {f"{s}_{c}": loads.boundary_dofs(disc, s, c)
@@ -190,7 +226,8 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
         return {"settlement": float(-u.mean() / B_HALF) if s.committed.stage == "push" else 0.0,
                 factor: -s.reactions(dofs["footing_y"]) / norm}
 
-    name = f"strip_footing_{factor}_phi{phi_deg:g}_psi{psi_deg:g}"
+    name = f"strip_footing_{factor}_phi{phi_deg:g}_psi{psi_deg:g}" if top == 0 else \
+        f"strip_footing_{factor}_{'mixed' if np.ndim(tier) else f'tier{top}'}_c{params.initial.c0:.4f}"
     width, depth = (MECHANISM_SCALE[factor] * v for v in mechanism_size(phi_deg))
     outputs = analysis.Outputs(out, name, frame_every=5, curve_axes=("settlement", factor),
                                reference=reference if math.isfinite(reference) else None,
@@ -208,31 +245,40 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
             "dofs": disc.ndofs, "element": element, "level": level, "wall_s": wall,
             "steps": len(result.iterations),
             "median_newton": float(np.median(result.iterations)),
+            "cuts": int(sum(r.cuts for r in solver.records)),
+            "curve_values": values, "curve_settlements": result.column("settlement"),
             "residuals": [r.residuals for r in solver.records[-3:]],
+            "newton_per_step": list(result.iterations),
+            "indicators": result.indicators, "point_updates": point_updates(material),
             "files": result.files}
 
 
 def add_arguments(p) -> None:
+    material_options.add_arguments(p, default_tier=None,
+                                   default_help="1, or 0 when --phi or --psi is given")
     p.add_argument("--factor", choices=("Nq", "Ngamma"), default="Nq")
     p.add_argument("--phi", type=float, nargs="+", default=None,
-                   help="friction angle(s) in degrees (default: the parameter file's tier-0 phi "
-                        "for N_q, 30 for N_gamma, where the exact value is known)")
-    p.add_argument("--psi", nargs="+", default=["phi"],
-                   help="dilatancy angle(s) in degrees, or 'phi' for associated flow (default); "
-                        "several give the drop of the factor with psi")
-    p.add_argument("--element", choices=sorted(ELEMENTS), nargs="+", default=["P3"],
-                   help="element famil(y/ies) (default P3: the element study's choice)")
+                   help="tier 0: friction angle(s) in degrees (default: the parameter file's "
+                        "tier-0 phi for N_q, 30 for N_gamma, where the exact value is known)")
+    p.add_argument("--psi", nargs="+", default=None,
+                   help="tier 0: dilatancy angle(s) in degrees, or 'phi' for associated flow "
+                        "(default); several give the drop of the factor with psi")
+    p.add_argument("--element", choices=sorted(ELEMENTS), nargs="+", default=None,
+                   help="element famil(y/ies) (default: tier 0, P3, the element study's choice; "
+                        f"tiers >= 1, {CALIBRATED_ELEMENT}, a minute's run with its check)")
     p.add_argument("--level", type=int, nargs="+", default=[1], help="mesh density level(s), 1..8")
-    p.add_argument("--params", default=None, help="parameter file (default: the shipped one)")
     p.add_argument("--lam", type=float, default=None, help="override the regularization lambda")
     p.add_argument("--apex-stiffness", type=float, default=1e-9,
                    help="Newton-matrix stiffness fraction at apex points (0: off)")
     p.add_argument("--settlement", type=float, default=None,
-                   help="push to this settlement over B (default: 15 elastic settlement scales "
-                        "N b / lambda, about 0.1 B for N_gamma at phi = 30)")
+                   help="push to this settlement over B (default: tier 0, 15 elastic settlement "
+                        "scales N b / lambda, about 0.1 B for N_gamma at phi = 30; tiers >= 1, "
+                        f"{CALIBRATED_SETTLEMENT} B)")
     p.add_argument("--relaxation-time", type=float, default=None,
                    help="Duvaut-Lions viscoplastic material with this relaxation time, in "
                         "units of settlement over B (default: rate-independent)")
+    p.add_argument("--no-check", action="store_true",
+                   help="tiers >= 1: skip the tier-0 check against Prandtl-Reissner at phi*")
 
 
 TABLE_COLUMNS = ("factor", "phi", "psi", "element", "level", "dofs", "computed", "reference",
@@ -241,6 +287,32 @@ TABLE_COLUMNS = ("factor", "phi", "psi", "element", "level", "dofs", "computed",
 
 
 def run(args) -> CaseResult:
+    """Tier 0: the (φ, ψ) study (:func:`run_tier0`); tiers >= 1 and auto: the calibrated
+    material beside its tier-0 check (:func:`run_calibrated`)."""
+    params = material_options.load(args)
+    if args.lam is not None:
+        params = params.replace("regularization", lam=args.lam)
+    if args.fast:   # the test-suite preset: P2 on the level-1 mesh
+        args.element, args.level = ["P2"], [1]
+    if args.tier is None:
+        args.tier = "0" if args.phi is not None or args.psi is not None else "1"
+    if args.settlement is not None and not 0.0 < args.settlement <= 1.0:
+        raise ParamError(f"settlement = {args.settlement:g} B is outside the accepted range (0, 1]")
+    NewtonOptions(relaxation_time=args.relaxation_time)     # its range, before any run
+    for level in args.level:
+        check_level(level)
+    tier = material_options.tier_arg(args.tier)
+    if args.element is None:
+        args.element = ["P3"] if tier == 0 else [CALIBRATED_ELEMENT]
+    if tier == 0:
+        return run_tier0(args, params)
+    if args.phi is not None or args.psi is not None:
+        raise ParamError(f"--phi/--psi set tier 0's constant angles; tier {tier} takes them "
+                         "from the model at c0 (use --tier 0 for given angles)")
+    return run_calibrated(args, params, tier)
+
+
+def run_tier0(args, params) -> CaseResult:
     """Every (φ, ψ, element, level) combination; a table CSV when there is more than one.
 
     A combination whose Newton fails (ConvergenceError) is recorded in the notes
@@ -248,11 +320,6 @@ def run(args) -> CaseResult:
     factor) and as a ``failed`` table row, and the others still run; only the run behind
     the headline figure (the first associated one with an exact reference) re-raises.
     """
-    params = default_params() if args.params is None else load_params(args.params)
-    if args.lam is not None:
-        params = params.replace("regularization", lam=args.lam)
-    if args.fast:   # the test-suite preset: P2 on the level-1 mesh
-        args.element, args.level = ["P2"], [1]
     phis = args.phi or ([30.0] if args.factor == "Ngamma" else [params.tier0.phi_deg])
     symbol = "N_q" if args.factor == "Nq" else "N_gamma"
     source = "Prandtl-Reissner" if args.factor == "Nq" else "Martin (2005)"
@@ -261,7 +328,7 @@ def run(args) -> CaseResult:
         for element in args.element:
             for level in args.level:
                 associated = None
-                for psi_arg in args.psi:
+                for psi_arg in args.psi or ["phi"]:
                     psi = phi if psi_arg == "phi" else float(psi_arg)
                     label = f"{symbol}(phi={phi:g}, psi={psi:g}, {element}, level {level})"
                     if len(args.element) == len(args.level) == 1:
@@ -317,3 +384,92 @@ def run(args) -> CaseResult:
         files.append(write_csv(table, TABLE_COLUMNS, rows))
     return CaseResult(figures, notes, files)
 
+
+
+CALIBRATED_KEYS = ("peak", "peak_settlement_over_B", "computed_end", "settlement_over_B",
+                   "dofs", "steps", "cuts", "median_newton", "max_newton", "wall_s")
+"""What the notes keep of a calibrated-material run."""
+
+
+def tier0_bounds(factor: str, params) -> dict:
+    """The exact tier-0 (associated, constant φ) factor at the critical angle φ* and at the
+    initial state's peak angle φ0 = φ(c0): N_q by Prandtl–Reissner (NaN for N_γ, which has
+    no closed form at these angles). A dense start softens from φ0 to φ*, a loose one
+    hardens from φ0 to φ*. The larger value bounds the load from above (no point's φ
+    exceeds it, and non-associated flow carries no more than associated flow with the same
+    yield surface: Radenković's first theorem); the smaller is where the load must lie
+    above but not a theorem (the second theorem's lower bound is the associated load at
+    atan(sin φ), lower still; docs/fem_validation.md §8)."""
+    phi0, psi0 = material_options.initial_angles(params)
+    phi_star = params.tier1.phi_star_deg
+    value = prandtl_nq if factor == "Nq" else (lambda phi: math.nan)
+    return {"phi_star": phi_star, "phi0": phi0, "psi0": psi0, "at_phi_star": value(phi_star),
+            "at_phi0": value(phi0),
+            "davis_phi0": davis_angle(phi0, psi0), "at_davis_phi0": value(davis_angle(phi0, psi0))}
+
+
+def run_calibrated(args, params, tier) -> CaseResult:
+    """The footing on the model of ``params`` (tier 1, 2 or auto) from its ``[initial]``
+    state, beside the tier-0 check: tier 0 with associated flow at φ* against
+    Prandtl–Reissner (N_q; skipped by ``--no-check`` and for N_γ). The calibrated factor is
+    the peak of its load–settlement curve (the collapse load of a softening material;
+    the end value of a hardening one), printed against the tier-0 values at φ* and at
+    φ0 = φ(c0) (:func:`tier0_bounds`), with no published reference."""
+    if len(args.element) != 1 or len(args.level) != 1:
+        raise ParamError("tiers >= 1 run one element and one mesh level "
+                         f"(got --element {' '.join(args.element)} --level "
+                         f"{' '.join(map(str, args.level))})")
+    element, level = args.element[0], args.level[0]
+    bounds = tier0_bounds(args.factor, params)
+    symbol = "N_q" if args.factor == "Nq" else "N_gamma"
+    settlement = CALIBRATED_SETTLEMENT if args.settlement is None else args.settlement
+    figures, notes, files = [], {}, []
+    check = None
+    if args.factor == "Nq" and not args.no_check:
+        phi = bounds["phi_star"]
+        check = solve(phi, phi, "Nq", element, level, params, args.out, not args.quiet,
+                      apex_stiffness=args.apex_stiffness)
+        label = f"tier-0 check N_q(phi*={phi:.2f}, associated)"
+        check_figure = Figure(label, check["computed"], check["reference"], "Prandtl-Reissner")
+        notes[label] = {k: check[k] for k in ("plateau_drift", "dofs", "steps", "median_newton",
+                                              "wall_s")}
+        notes[label]["last_step_residuals"] = check["residuals"][-1]
+        files += check["files"]
+
+    def one(run_params, point_tiers) -> dict:
+        return solve(bounds["phi0"], bounds["psi0"], args.factor, element, level, run_params,
+                     args.out, not args.quiet, apex_stiffness=args.apex_stiffness,
+                     settlement=settlement, relaxation_time=args.relaxation_time,
+                     tier=point_tiers)
+
+    if tier == "auto":
+        r, auto = run_auto(one, params, args.tolerance, min_tier=1)
+    else:
+        r, auto = one(params, tier), None
+    curve_peak = int(np.argmax(r["curve_values"]))
+    r["peak_settlement_over_B"] = float(r["curve_settlements"][curve_peak] / 2)
+    r["computed_end"], r["max_newton"] = r["computed"], int(max(r["newton_per_step"]))
+    low, high = sorted((bounds["at_phi_star"], bounds["at_phi0"]))
+    within = bool(low <= r["peak"] <= high) if math.isfinite(low) else None
+    c0 = params.initial.c0
+    label = f"{symbol}(tier {args.tier}, c0={c0:.4f}: phi0={bounds['phi0']:.2f}, " \
+            f"psi0={bounds['psi0']:.2f})"
+    if within is None:
+        source = f"{NO_REFERENCE}; no closed-form tier-0 value at phi* or phi0"
+    else:
+        source = (f"{NO_REFERENCE}; tier 0 (Prandtl-Reissner) gives {bounds['at_phi_star']:.4g} "
+                  f"at phi*={bounds['phi_star']:.2f} and {bounds['at_phi0']:.4g} at "
+                  f"phi0={bounds['phi0']:.2f}: {'between them' if within else 'NOT between them'}")
+    figures.append(Figure(label, r["peak"], math.nan, source))
+    if check is not None:
+        figures.append(check_figure)
+    notes[label] = {k: r[k] for k in CALIBRATED_KEYS}
+    notes[label].update(
+        within_tier0_bounds=within, tier0_bounds=bounds,
+        solution=("rate-independent Newton (consistent tangent)" if args.relaxation_time is None
+                  else f"Duvaut-Lions viscoplastic, tau = {args.relaxation_time:g} settlement/B"),
+        newton_per_step=r["newton_per_step"])
+    if auto is not None:
+        notes[label]["auto"] = auto
+    files += r["files"]
+    return CaseResult(figures, notes, files)
