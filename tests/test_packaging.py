@@ -53,5 +53,8 @@ def test_a_wheel_install_runs_a_case_outside_the_checkout(tmp_path):
     done = _run([str(py), "-m", "contfab.cli", "case", "strip_footing", "--fast", "--json",
                  "--quiet", "--out", str(out)], cwd=tmp_path)
     result = json.loads(done.stdout)
-    assert abs(result["relative_error"]) < 0.05  # N_q against Prandtl–Reissner, coarse preset
+    # the main job: the calibrated tier-1 footing (no published reference) and its tier-0
+    # check, N_q against Prandtl–Reissner at the coarse preset
+    check = [f for f in result["figures"] if f["reference"] is not None]
+    assert check and abs(check[0]["relative_error"]) < 0.05
     assert any(out.glob("*.pvd"))
