@@ -1,4 +1,4 @@
-"""Acceptance 4 and 5 of issue 2 at reduced size (normal suite) and full size (slow).
+"""The DEM's acceptance checks at reduced size (normal suite) and full size (slow).
 
 Reduced: N = 150, κ = 1e3, I = 1e-2 (the session fixtures). These still fail if dense and
 loose samples respond alike, if the fabric leaves the admissible set, or if the fabric

@@ -1,4 +1,4 @@
-"""The DEM benchmark's system definition matches the LAMMPS reference of issue 2."""
+"""The DEM benchmark's system definition matches the LAMMPS reference system."""
 import math
 
 from contfab.bench.dem import _dt_fraction, reference_system

@@ -1,4 +1,4 @@
-"""FE×DEM (issue 8): DEM cells at the quadrature points of the FEM solver."""
+"""FE×DEM: DEM cells at the quadrature points of the FEM solver."""
 import contextlib
 import os
 import pathlib

@@ -1,7 +1,7 @@
 """The material-point driver (contfab.material_point): mixed control, the exact control
 Jacobian, stress-control accuracy on every standard path, stop conditions, step cutting,
-and the physics of issue 3's acceptance 2 (tier-1 critical state), 5 (quadratic Newton),
-6 (step-size order per tier; strain path, not time parametrization) and the rotation path."""
+and the physics of the tier-1 critical state, the quadratic Newton, the step-size order
+per tier (strain path, not time parametrization) and the rotation path."""
 import dataclasses
 import math
 

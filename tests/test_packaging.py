@@ -50,11 +50,10 @@ def test_a_wheel_install_runs_a_case_outside_the_checkout(tmp_path):
     assert Path(where.stdout.strip()).is_relative_to(venv)
 
     out = tmp_path / "out"
-    done = _run([str(py), "-m", "contfab.cli", "case", "strip_footing", "--fast", "--json",
-                 "--quiet", "--out", str(out)], cwd=tmp_path)
+    # the footing at constant angles (the main job's tier-0 check; the calibrated run is
+    # tests/test_fem_cases.py's): its scene, mesh and references come from the wheel
+    done = _run([str(py), "-m", "contfab.cli", "case", "strip_footing", "--tier", "0", "--fast",
+                 "--json", "--quiet", "--out", str(out)], cwd=tmp_path)
     result = json.loads(done.stdout)
-    # the main job: the calibrated tier-1 footing (no published reference) and its tier-0
-    # check, N_q against Prandtl–Reissner at the coarse preset
-    check = [f for f in result["figures"] if f["reference"] is not None]
-    assert check and abs(check[0]["relative_error"]) < 0.05
+    assert abs(result["relative_error"]) < 0.05  # N_q against Prandtl–Reissner, coarse preset
     assert any(out.glob("*.pvd"))

@@ -28,7 +28,7 @@ def _doc(**changes):
 
 
 def test_default_file_is_a_calibration_output_with_its_provenance():
-    """The shipped file is what `contfab calibrate` wrote (issue 4): its provenance names the
+    """The shipped file is what `contfab calibrate` wrote: its provenance names the
     command and the campaign, and its values are those this DEM measures for μ = 0.5 discs
     (docs/dem_validation.md: residual R/P 0.27 and c 0.812 at N = 2000, i.e. φ* = 15.7°)."""
     import tomllib

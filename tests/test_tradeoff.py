@@ -198,9 +198,8 @@ def test_fem_band_fast_peak_and_angle_within_the_case_bounds(tmp_path):
 def test_tier_studies_fast_tier1_carries_the_volume_change(tmp_path):
     """Both tier studies against an N = 100 DEM reference (one dense sample): tier 0
     (constant ψ, no c) misses ε_v by 3-5 % strain, tiers 1 and 2 (ψ(c)) come within 1.5 %
-    and halve the R/P error on the monotonic path; after the reversal no tier follows the
-    DEM's transient (RP_transient ~0.07 for all: issue 4). The cost per increment is
-    reported, not ordered here: at --fast sizes it is the driver's Python overhead
+    and halve the R/P error on the monotonic path. The cost per increment is reported, not
+    ordered here: at --fast sizes it is the driver's Python overhead
     (~200 CPU µs per increment for every tier; tier 2 measured below tier 1 once, 190 vs
     234), and speed belongs to `contfab bench model`."""
     run(["tier_biaxial", "tier_reversal"], tmp_path / "tiers", fast=True, progress=False)
