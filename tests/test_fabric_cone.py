@@ -47,6 +47,17 @@ def _random_increments(rng, n, lo, hi):
     return d / np.linalg.norm(d, axis=1)[:, None] * size[:, None], rng.standard_normal(n) * size
 
 
+def _random_update(law, seed, n, increments):
+    """The tier-2 update of ``n`` random points (:func:`_random_points`) of fabric-law
+    variant ``law`` under ``increments(rng, n)`` -> (Δε, Δω); returns (params, stress,
+    state, Δε, Δω, result)."""
+    params = model_params(**VARIANTS[law])
+    rng = np.random.default_rng(seed)
+    stress, state = _random_points(rng, n)
+    de, dw = increments(rng, n)
+    return params, stress, state, de, dw, tiers.update(2, stress, state, de, dw, params)
+
+
 def _norm(stress):
     return np.linalg.norm(stress, axis=-1)
 
@@ -84,13 +95,8 @@ def test_consistent_tangent_matches_central_differences_at_plastic_points(law):
     # Anisotropic fabrics (B/A up to 0.5) at random angles to the stress: the flow is
     # along s + Pα, not coaxial with σ. Central differences with h = 1e-5 |Δε| of the
     # whole update. Measured: <= 7.5e-11 of the largest entry (115 face points).
-    params = model_params(**VARIANTS[law])
-    rng = np.random.default_rng(1)
-    n = 200
-    stress, state = _random_points(rng, n)
-    de = 1e-3 * rng.standard_normal((n, 3))
-    dw = 1e-3 * rng.standard_normal(n)
-    res = tiers.update(2, stress, state, de, dw, params)
+    params, stress, state, de, dw, res = _random_update(
+        law, 1, 200, lambda rng, n: (1e-3 * rng.standard_normal((n, 3)), 1e-3 * rng.standard_normal(n)))
     face = np.flatnonzero(res.status == STATUS_FACE)
     assert face.size > 80
     # non-coaxial: the fabric's direction is away from the stress's principal axis
@@ -117,12 +123,9 @@ def test_consistent_tangent_matches_central_differences_at_plastic_points(law):
 def test_every_plastic_result_lies_on_its_own_yield_surface(law):
     # f(σ_{n+1}; c_{n+1}, q_{n+1}) = 0 from the yield function's definition, to 1e-9 of |σ|,
     # with Δγ >= 0 (measured: 8e-13).
-    params = model_params(**VARIANTS[law])
-    rng = np.random.default_rng(2)
     n = 2000
-    stress, state = _random_points(rng, n)
-    de, dw = _random_increments(rng, n, -5.0, -2.0)
-    res = tiers.update(2, stress, state, de, dw, params)
+    params, stress, state, de, dw, res = _random_update(
+        law, 2, n, lambda rng, n: _random_increments(rng, n, -5.0, -2.0))
     plastic = np.isin(res.status, (STATUS_FACE, STATUS_PROJECTED))
     assert plastic.sum() > 0.4 * n
     f = np.abs(cone_yield(params, res.stress[plastic], res.state[plastic]))
