@@ -1,4 +1,8 @@
-"""Trade-off studies: the machinery (front, resume, files) and each study's --fast shape."""
+"""Trade-off studies: the machinery (front, resume, files) and each study's --fast shape.
+
+The DEM and FEM studies' checks are slow (about 30 s together): the DEM and the FEM they
+time are tested on their own in the normal suite; ``python -m pytest -m slow
+tests/test_tradeoff.py`` runs them."""
 import numpy as np
 import pytest
 
@@ -119,6 +123,7 @@ def dem_fast(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_dem_size_fast_scatter_falls_with_n(dem_fast):
     t = _table(dem_fast, "dem_size")
     assert list(t["n"]) == [64, 128, 512]
@@ -135,6 +140,7 @@ def test_dem_size_fast_scatter_falls_with_n(dem_fast):
     assert "beta (row scatter of RP ∝ N^-beta)" in md and "±" in md
 
 
+@pytest.mark.slow
 def test_dem_inertial_fast_error_falls_with_cost_toward_the_quasi_static_limit(dem_fast):
     t = _table(dem_fast, "dem_inertial")
     order = np.argsort(t["inertial"])          # slowest (most costly) first
@@ -147,6 +153,7 @@ def test_dem_inertial_fast_error_falls_with_cost_toward_the_quasi_static_limit(d
     assert err[-1] > 0.2 and t["error_c"][order][-1] > 0.02
 
 
+@pytest.mark.slow
 def test_dem_stiffness_fast_error_falls_with_cost_toward_the_rigid_limit(dem_fast):
     t = _table(dem_fast, "dem_stiffness")
     order = np.argsort(t["kappa"])[::-1]       # stiffest (most costly) first
@@ -161,6 +168,7 @@ def test_dem_stiffness_fast_error_falls_with_cost_toward_the_rigid_limit(dem_fas
     assert t["cost"][order][0] > 2 * t["cost"][order][-1]
 
 
+@pytest.mark.slow
 def test_fem_footing_fast_quadratic_elements_buy_accuracy(tmp_path):
     run("fem_footing_nq", tmp_path, fast=True, progress=False)
     t = _table(tmp_path, "fem_footing_nq")
@@ -171,6 +179,7 @@ def test_fem_footing_fast_quadratic_elements_buy_accuracy(tmp_path):
     assert p2["cpu_s"][0] > p1["cpu_s"][0]
 
 
+@pytest.mark.slow
 def test_fem_footing_ngamma_fast_quadratic_elements_buy_accuracy(tmp_path):
     run("fem_footing_ngamma", tmp_path, fast=True, progress=False)
     t = _table(tmp_path, "fem_footing_ngamma")
@@ -181,6 +190,7 @@ def test_fem_footing_ngamma_fast_quadratic_elements_buy_accuracy(tmp_path):
     assert p2["cpu_s"][0] > 3 * p1["cpu_s"][0]
 
 
+@pytest.mark.slow
 def test_fem_band_fast_peak_and_angle_within_the_case_bounds(tmp_path):
     """The dense shear band on levels 1 and 2 (P2): the peak σ1/σ3 within 2.5 % of the
     closed form at the initial density (measured 1.2 % and 2.0 %), the level-2 band within
