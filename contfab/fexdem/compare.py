@@ -204,9 +204,9 @@ def _fexdem(report, curves, finals, *, case, scene, prepared, out, params, p0, b
                 owned.close()
     report["runs"]["dem"] = _summary(res, solver, time.perf_counter() - t0)
     report["runs"]["dem"]["band"] = localization(disc, disc.strain(solver.committed.u)[0])
-    report["band_figure"] = str(band_figure(out / f"{case}_dem_band.png", disc,
-                                            disc.strain(solver.committed.u)[0],
-                                            f"{case}: FE×DEM shear strain at the end"))
+    report["band_figure"] = band_figure(out / f"{case}_dem_band.png", disc,
+                                        disc.strain(solver.committed.u)[0],
+                                        f"{case}: FE×DEM shear strain at the end").name
     report["profile"]["startup_s"] = startup    # cells made, kernels loaded (or compiled)
     report["profile"]["outputs_and_close_s"] = (report["runs"]["dem"]["wall_s"] - startup
                                                 - report["profile"]["stage_s"])
@@ -324,7 +324,7 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
         dem_cpu = report["profile"]["trials"]["cell_cpu_s"]
         report["adaptive"]["cost_ratio_cpu_adaptive_over_dem"] = (
             sum(amat.cpu.values()) / dem_cpu if dem_cpu > 0 else None)
-    report["overlay"] = str(_overlay(out / "overlay.png", curves, xcol, ycol, case))
+    report["overlay"] = _overlay(out / "overlay.png", curves, xcol, ycol, case).name
     report["report"] = str(write_json(out / "report.json", report))
     return report
 
