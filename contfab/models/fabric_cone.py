@@ -181,7 +181,7 @@ def _fabric(q0, bc, bs, dexx, deyy, dgxy, c, prm, sc):
 @njit(**KERNEL)
 def _assemble(c_n, q0, bc0, bs0, prm, sc, s_ref):
     """Residuals r(x) into sc.res (stress rows divided by s_ref) and, with them, the
-    Jacobian ∂r/∂x into sc.jac (the same scaling). Returns whether Φ projected."""
+    Jacobian ∂r/∂x into sc.jac (the same scaling)."""
     x = sc.x
     res = sc.res
     jac = sc.jac
@@ -251,8 +251,8 @@ def _assemble(c_n, q0, bc0, bs0, prm, sc, s_ref):
     res[2] = (p - tr[2] - bulk * d * dgam) / s_ref
     res[3] = (nu - m * p) / s_ref
     res[4] = c - c_n * np.exp(-d * dgam)
-    projected = _fabric(q0, bc0, bs0, 0.5 * dgam * (d + hx), 0.5 * dgam * (d - hx), dgam * hy,
-                        c, prm, sc)
+    _fabric(q0, bc0, bs0, 0.5 * dgam * (d + hx), 0.5 * dgam * (d - hx), dgam * hy,
+            c, prm, sc)
     q = sc.q
     dq = sc.dq
     for i in range(3):
@@ -262,7 +262,6 @@ def _assemble(c_n, q0, bc0, bs0, prm, sc, s_ref):
             if j == 4:
                 v += dq[3, i]
             jac[5 + i, j] = (1.0 if j == 5 + i else 0.0) - v
-    return projected
 
 
 @njit(**KERNEL, inline="always")
