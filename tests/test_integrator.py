@@ -1,4 +1,6 @@
 """Time stepping: energy conservation (acceptance 2), the energy balance, threads, dt limit."""
+import math
+
 import numba
 import numpy as np
 import pytest
@@ -106,3 +108,81 @@ def test_time_step_above_stability_limit_is_refused():
     assert time_step(law, 1.0, limit) == pytest.approx(limit * 1e-2)
     with pytest.raises(TimeStepError, match=rf"fraction {1.01 * limit} .*accepted range \(0, "):
         time_step(law, 1.0, 1.01 * limit)
+
+
+def _reference_forces(st, law, dt):
+    """Forces, torques, contact stress · V and the new tangential histories of every
+    touching pair, found by brute force over all pairs and images and evaluated from the
+    contact law as documented (:mod:`dem.contact_law`), in plain Python."""
+    kn, kt, beta, mu = law.kn, law.kt, law.beta, law.mu
+    x = st.s @ st.h.T
+    hist = {(int(i), int(j), int(a), int(b)): st.pair_hist[q].copy()
+            for q, ((i, j), (a, b)) in enumerate(zip(st.pair_ij[:st.n_pairs],
+                                                      st.pair_shift[:st.n_pairs]))}
+    force, torque = np.zeros((st.n, 2)), np.zeros(st.n)
+    sigma_v, new_hist = np.zeros(3), {}
+    for i in range(st.n):
+        for j in range(i + 1, st.n):
+            for a in (-1, 0, 1):
+                for b in (-1, 0, 1):
+                    l = x[j] + st.h @ np.array([a, b]) - x[i]
+                    dist = math.hypot(l[0], l[1])
+                    ri, rj = st.radius[i], st.radius[j]
+                    if dist >= ri + rj:
+                        continue
+                    n = l / dist
+                    t = np.array([-n[1], n[0]])
+                    delta = ri + rj - dist
+                    li, lj = ri - delta / 2, rj - delta / 2
+                    w = st.L @ l + st.v[j] - st.v[i] - (st.omega[i] * li + st.omega[j] * lj) * t
+                    m_eff = st.mass[i] * st.mass[j] / (st.mass[i] + st.mass[j])
+                    fn = max(0.0, kn * delta - 2 * beta * math.sqrt(m_eff * kn) * (w @ n))
+                    trial = hist.get((i, j, a, b), np.zeros(4))[0] + (w @ t) * dt
+                    xi = max(-mu * fn / kt, min(mu * fn / kt, trial))
+                    f = -fn * n + kt * xi * t
+                    force[i] += f
+                    force[j] -= f
+                    torque[i] += li * kt * xi
+                    torque[j] += lj * kt * xi
+                    sigma_v += [f[0] * l[0], f[1] * l[1], 0.5 * (f[0] * l[1] + f[1] * l[0])]
+                    new_hist[(i, j, a, b)] = (xi, delta, xi != trial)
+    return force, torque, sigma_v, new_hist
+
+
+def test_one_step_of_forces_and_histories_matches_a_plain_python_evaluation(packing_frictional):
+    # a sheared frictional packing (contacts sticking, sliding, closing and opening):
+    # the optimized pair and disc passes against the contact law evaluated pair by pair
+    st = packing_frictional.copy()
+    dyn = make_dynamics(st, gdot=1e-2)
+    ctl = Control(np.array([0.0, -1e-2, 0.5e-2, 0.0]), np.array([True, False, False, False]),
+                  np.array([-1.0, -1.0, 0.0]), np.array([-1.0, -1.0, 0.0]))
+    advance(st, dyn, 300, ctl)
+    st.v += np.random.default_rng(3).normal(size=st.v.shape) * 0.02
+    st.omega += np.random.default_rng(4).normal(size=st.n) * 0.05
+    force, torque, sigma_v, new_hist = _reference_forces(st, dyn.law, dyn.dt)
+    assert len(new_hist) > 200 and sum(slid for _, _, slid in new_hist.values()) > 5
+    kn, kt, beta, mu, mu_roll = dyn.law.kernel_params()
+    const = integrator.pair_constants(st.pair_ij, st.n_pairs, st.radius, st.mass, kn, beta)
+    ps = integrator.pair_forces(st.h, st.L, st.s, st.v, st.omega, st.radius, const, st.pair_ij,
+                                st.pair_shift, st.pair_hist, st.pair_f, st.n_pairs, kn, kt, mu,
+                                mu_roll, dyn.dt)
+    none = np.zeros((2, 2))
+    integrator.disc_pass(st.pair_f, st.row_ptr, st.inc_ptr, st.inc, st.force, st.torque,
+                         st.v.copy(), st.omega.copy(), st.s, st.s_ref, st.mass, st.inv_mass,
+                         st.inv_inertia, st.L, st.L, none, none, 0.0, 0.0, True, False)
+    scale = np.abs(force).max()
+    assert np.allclose(st.force, force, rtol=0, atol=1e-11 * scale)
+    assert np.allclose(st.torque, torque, rtol=0, atol=1e-11 * scale)
+    assert np.allclose(ps[:3], sigma_v, rtol=1e-11, atol=1e-11 * np.abs(sigma_v).max())
+    got = {}
+    for q in range(st.n_pairs):
+        key = (int(st.pair_ij[q, 0]), int(st.pair_ij[q, 1]), int(st.pair_shift[q, 0]),
+               int(st.pair_shift[q, 1]))
+        if st.pair_hist[q, 3] != 0.0:
+            got[key] = (st.pair_hist[q, 0], st.pair_hist[q, 3])
+        else:
+            assert not np.any(st.pair_hist[q])      # apart: no history left
+    assert got.keys() == new_hist.keys()
+    for key, (xi, d, _) in new_hist.items():
+        assert abs(got[key][0] - xi) <= 1e-10 * dyn.law.mu * dyn.law.kn * d / dyn.law.kt + 1e-18
+        assert abs(got[key][1] - d) <= 1e-12
