@@ -177,14 +177,14 @@ def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair
     """
     nchunk = (n_pairs + CHUNK - 1) // CHUNK
     part = np.zeros((max(nchunk, 1), NPAIR_SUMS))
-    live = np.empty(max(n_pairs, 1), np.int64)
-    geo = np.empty((max(n_pairs, 1), 3))
     h00, h01, h10, h11 = h[0, 0], h[0, 1], h[1, 0], h[1, 1]
     L00, L01, L10, L11 = L[0, 0], L[0, 1], L[1, 0], L[1, 1]
     for c in prange(nchunk):
         q0 = c * CHUNK
         q1 = min(n_pairs, (c + 1) * CHUNK)
-        m = q0
+        live = np.empty(CHUNK, np.int64)      # the chunk's live pairs, kept in L1 cache
+        geo = np.empty((CHUNK, 3))            # with their (lx, ly, |l|²)
+        m = 0
         for q in range(q0, q1):
             # unsigned: indexing without the negative-index wraparound test
             i, j = np.uint64(pair_ij[q, 0]), np.uint64(pair_ij[q, 1])
@@ -202,7 +202,7 @@ def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair
             geo[m, 2] = d2
             m += (d2 < rs * rs) | (pair_hist[q, 3] != 0.0)
         a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = a8 = a9 = a10 = a11 = a12 = 0.0
-        for k in range(q0, m):
+        for k in range(m):
             q = np.uint64(live[k])
             lx, ly, d2 = geo[k, 0], geo[k, 1], geo[k, 2]
             i, j = np.uint64(pair_ij[q, 0]), np.uint64(pair_ij[q, 1])
