@@ -56,7 +56,7 @@ from dem.periodic_cell import cayley_det, cayley_step
 from dem.servo import L_MAX_FACTOR, servo_rate, time_constant
 from dem.state import D_DAMP, D_FRIC, D_ROLL, EXX, EXY, EYY, TAU, TIME, WORK, State
 
-CHUNK = 256
+CHUNK = 1024
 FASTMATH = {"contract", "reassoc", "nsz"}
 """LLVM flags of the pass kernels: fused multiply-add and reordered sums (same code for
 every thread count, so parallel runs stay bitwise equal to serial ones); no nnan/ninf, so
@@ -182,7 +182,7 @@ def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair
     for c in prange(nchunk):
         q0 = c * CHUNK
         q1 = min(n_pairs, (c + 1) * CHUNK)
-        live = np.empty(CHUNK, np.int64)      # the chunk's live pairs, kept in L1 cache
+        live = np.empty(CHUNK, np.int64)      # the chunk's live pairs (32 kB scratch per chunk)
         geo = np.empty((CHUNK, 3))            # with their (lx, ly, |l|²)
         m = 0
         for q in range(q0, q1):

@@ -6,10 +6,11 @@ import numpy as np
 import pytest
 
 from conftest import make_dynamics
-from dem import integrator, threads
+from dem import integrator, neighbours, threads
 from dem.contact_law import ContactLaw
 from dem.integrator import Control, TimeStepError, advance, evaluate_forces, stable_fraction, time_step
 from dem.measure import energies, love_weber
+from dem.state import new_state
 
 
 def test_frictionless_undamped_energy_drift_below_1e6_over_1e5_steps(packing_frictionless):
@@ -57,10 +58,23 @@ def test_kernel_stress_is_the_love_weber_stress(packing_frictional):
     assert st.stress[0] < 0 and st.stress[1] < 0
 
 
+def _tiled(st, k):
+    """The packing repeated k x k times in a k times larger cell (at rest, no histories)."""
+    offsets = np.array([(a, b) for b in range(k) for a in range(k)], float)
+    s = ((st.s % 1.0)[None, :, :] + offsets[:, None, :]).reshape(-1, 2) / k
+    out = new_state(np.tile(st.radius, k * k), s, st.h * k)
+    neighbours.rebuild(out, 0.2)
+    return out
+
+
 def test_parallel_and_serial_runs_are_bitwise_equal(packing_frictional):
+    # 3 x 3 copies of the packing: more discs and pairs than one chunk of either pass
+    tiled = _tiled(packing_frictional, 3)
+    assert tiled.n > integrator.CHUNK and tiled.n_pairs > 2 * integrator.CHUNK
+    tiled.v[:] = np.random.default_rng(5).normal(size=tiled.v.shape) * 0.01
     results = []
     for nt in (1, numba.config.NUMBA_NUM_THREADS):
-        st = packing_frictional.copy()
+        st = tiled.copy()
         dyn = make_dynamics(st, gdot=1e-2)
         ctl = Control(np.array([0.0, -1e-2, 0.5e-2, 0.0]), np.array([True, False, False, False]),
                       np.array([-1.0, -1.0, 0.0]), np.array([-1.0, -1.0, 0.0]))
