@@ -182,8 +182,9 @@ def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair
     for c in prange(nchunk):
         q0 = c * CHUNK
         q1 = min(n_pairs, (c + 1) * CHUNK)
-        live = np.empty(CHUNK, np.int64)      # the chunk's live pairs (32 kB scratch per chunk)
-        geo = np.empty((CHUNK, 3))            # with their (lx, ly, |l|²)
+        # the chunk's live pairs with their (lx, ly, |l|²): 32 kB, reused chunk after chunk
+        live = np.empty(CHUNK, np.int64)
+        geo = np.empty((CHUNK, 3))
         m = 0
         for q in range(q0, q1):
             # unsigned: indexing without the negative-index wraparound test
