@@ -200,3 +200,73 @@ def test_one_step_of_forces_and_histories_matches_a_plain_python_evaluation(pack
     for key, (xi, d, _) in new_hist.items():
         assert abs(got[key][0] - xi) <= 1e-10 * dyn.law.mu * dyn.law.kn * d / dyn.law.kt + 1e-18
         assert abs(got[key][1] - d) <= 1e-12
+
+
+def _reference_trajectory(st, law, dt, L, nsteps):
+    """(s, v', ω) after ``nsteps`` steps of the module doc's velocity Verlet with a
+    prescribed L (kick, Cayley map of the cell, drift, forces, kick), the forces from the
+    contact law in numpy over the state's pair list, kept fixed (wide enough for the run)."""
+    n = st.n_pairs
+    i, j, shift = st.pair_ij[:n, 0], st.pair_ij[:n, 1], st.pair_shift[:n].astype(float)
+    ri, rj = st.radius[i], st.radius[j]
+    gamma = 2 * law.beta * np.sqrt(st.mass[i] * st.mass[j] / (st.mass[i] + st.mass[j]) * law.kn)
+    xi = st.pair_hist[:n, 0].copy()
+    s, h, v, w = st.s.copy(), st.h.copy(), st.v.copy(), st.omega.copy()
+
+    def forces(xi, step):
+        l = (s[j] + shift - s[i]) @ h.T
+        dist = np.hypot(l[:, 0], l[:, 1])
+        touching = dist < ri + rj
+        nrm = l / dist[:, None]
+        t = np.stack([-nrm[:, 1], nrm[:, 0]], axis=1)
+        delta = ri + rj - dist
+        li, lj = ri - delta / 2, rj - delta / 2
+        rel = l @ L.T + v[j] - v[i] - (w[i] * li + w[j] * lj)[:, None] * t
+        vn, vt = np.sum(rel * nrm, axis=1), np.sum(rel * t, axis=1)
+        fn = np.where(touching, np.maximum(0.0, law.kn * delta - gamma * vn), 0.0)
+        cap = law.mu * fn / law.kt
+        xi = np.where(touching, np.clip(xi + vt * step, -cap, cap), 0.0)
+        f = -fn[:, None] * nrm + law.kt * xi[:, None] * t
+        force, torque = np.zeros((st.n, 2)), np.zeros(st.n)
+        np.add.at(force, i, f)
+        np.add.at(force, j, -f)
+        np.add.at(torque, i, li * law.kt * xi)
+        np.add.at(torque, j, lj * law.kt * xi)
+        return force, torque, xi
+
+    force, torque, _ = forces(xi, 0.0)
+    a = np.eye(2) - 0.5 * dt * L
+    cayley = np.linalg.solve(a, np.eye(2) + 0.5 * dt * L)
+    for _ in range(nsteps):
+        v = v + 0.5 * dt * (force / st.mass[:, None] - v @ L.T)
+        w = w + 0.5 * dt * torque * st.inv_inertia
+        h_new = cayley @ h
+        s = s + dt * v @ np.linalg.inv(0.5 * (h + h_new)).T
+        h = h_new
+        force, torque, xi = forces(xi, dt)
+        v = v + 0.5 * dt * (force / st.mass[:, None] - v @ L.T)
+        w = w + 0.5 * dt * torque * st.inv_inertia
+    return s, v, w
+
+
+def test_a_thousand_steps_of_shear_match_a_numpy_velocity_verlet(packing_frictional):
+    # the optimized step (fused passes, live-pair compaction, list rebuilds) against the
+    # module doc's scheme written out in numpy: the same trajectory to rounding. Rounding
+    # differences grow about e-fold per 100 steps in this dense packing (measured 6e-13
+    # in s, 1e-9 relative in v' and ω after 1000 steps, 3e-5 relative after 3000)
+    st = packing_frictional.copy()
+    dyn = make_dynamics(st, gdot=1e-2)
+    neighbours.rebuild(st, 0.6)                   # a list for the reference's whole run
+    st.v[:] = np.random.default_rng(6).normal(size=st.v.shape) * 0.01
+    L = np.array([[2e-3, 1e-2], [0.0, -3e-3]])
+    st.L[:] = L
+    evaluate_forces(st, dyn)
+    image0 = st.image.copy()
+    s, v, w = _reference_trajectory(st, dyn.law, dyn.dt, L, 1000)
+    ctl = Control(np.array([L[0, 0], L[1, 1], L[0, 1], L[1, 0]]), np.zeros(4, bool),
+                  np.zeros(3), np.zeros(3))
+    advance(st, dyn, 1000, ctl)
+    assert st.rebuilds > packing_frictional.rebuilds + 1
+    assert np.abs(st.s + st.image - image0 - s).max() < 1e-9
+    assert np.abs(st.v - v).max() < 1e-6 * np.abs(v).max()
+    assert np.abs(st.omega - w).max() < 1e-6 * np.abs(w).max()
