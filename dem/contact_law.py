@@ -165,11 +165,11 @@ def contact_response(delta, delta_old, fd_old, vn, vt, wrel, xi_t, xi_r, gamma, 
         d_damp = 0.5 * (fd_old + fd) * (delta - delta_old)
     xi = xi_t + vt * dt
     lim = mu * fn
-    d_fric = 0.0
-    if kt * abs(xi) > lim:
-        xi_new = math.copysign(lim / kt, xi)
-        d_fric = 0.5 * kt * (xi_t + xi_new) * (xi - xi_new)
-        xi = xi_new
+    # sliding as selects, not a branch: whether a contact slides is data dependent
+    xi_slip = math.copysign(lim / kt, xi)
+    slides = kt * abs(xi) > lim
+    d_fric = 0.5 * kt * (xi_t + xi_slip) * (xi - xi_slip) if slides else 0.0
+    xi = xi_slip if slides else xi
     ft = kt * xi
     mr = 0.0
     xr = 0.0

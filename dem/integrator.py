@@ -56,7 +56,7 @@ from dem.periodic_cell import cayley_det, cayley_step
 from dem.servo import L_MAX_FACTOR, servo_rate, time_constant
 from dem.state import D_DAMP, D_FRIC, D_ROLL, EXX, EXY, EYY, TAU, TIME, WORK, State
 
-CHUNK = 256
+CHUNK = 1024
 FASTMATH = {"contract", "reassoc", "nsz"}
 """LLVM flags of the pass kernels: fused multiply-add and reordered sums (same code for
 every thread count, so parallel runs stay bitwise equal to serial ones); no nnan/ninf, so
@@ -154,7 +154,7 @@ def pair_constants(pair_ij, n_pairs, radius, mass, kn, beta):
 NPAIR_SUMS = 13  # sxx, syy, sxy, Mxx, Myy, Mxy, Myx, d_damp, d_fric, d_roll, dashpot sxx, syy, sxy
 
 
-@njit(cache=True, parallel=True, fastmath=FASTMATH)
+@njit(cache=True, parallel=True, fastmath=FASTMATH, error_model="numpy")
 def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair_hist, pair_f,
                 n_pairs, kn, kt, mu, mu_roll, dt):
     """Step 5: contact forces of every listed pair; returns the summed (NPAIR_SUMS,) terms.
@@ -169,29 +169,46 @@ def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair
     trapezoidal work of its last forces over this step's motion, ½ fn_old (δ - δ_old) on
     the normal, ½ ft_old vt dt and ½ Mr_old (ωj - ωi) dt on the tangential and rolling
     springs, plus the energy they stored (lost with the contact).
+
+    Each chunk of pairs is done in two loops: the first finds its live pairs (in contact
+    now or at the last step) and zeroes every pair's forces, the second evaluates the live
+    ones, in pair order. Whether a listed pair touches is data dependent, so testing it in
+    the force loop would mispredict a branch on a large fraction of the pairs.
     """
     nchunk = (n_pairs + CHUNK - 1) // CHUNK
     part = np.zeros((max(nchunk, 1), NPAIR_SUMS))
     h00, h01, h10, h11 = h[0, 0], h[0, 1], h[1, 0], h[1, 1]
+    L00, L01, L10, L11 = L[0, 0], L[0, 1], L[1, 0], L[1, 1]
     for c in prange(nchunk):
-        a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = a8 = a9 = a10 = a11 = a12 = 0.0
-        for q in range(c * CHUNK, min(n_pairs, (c + 1) * CHUNK)):
+        q0 = c * CHUNK
+        q1 = min(n_pairs, (c + 1) * CHUNK)
+        # the chunk's live pairs with their (lx, ly, |l|²): 32 kB, reused chunk after chunk
+        live = np.empty(CHUNK, np.int64)
+        geo = np.empty((CHUNK, 3))
+        m = 0
+        for q in range(q0, q1):
             # unsigned: indexing without the negative-index wraparound test
             i, j = np.uint64(pair_ij[q, 0]), np.uint64(pair_ij[q, 1])
             ds0 = s[j, 0] + pair_shift[q, 0] - s[i, 0]
             ds1 = s[j, 1] + pair_shift[q, 1] - s[i, 1]
             lx = h00 * ds0 + h01 * ds1
             ly = h10 * ds0 + h11 * ds1
+            rs = radius[i] + radius[j]
+            d2 = lx * lx + ly * ly
+            for a in range(4):
+                pair_f[q, a] = 0.0
+            live[m] = q
+            geo[m, 0] = lx
+            geo[m, 1] = ly
+            geo[m, 2] = d2
+            m += (d2 < rs * rs) | (pair_hist[q, 3] != 0.0)
+        a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = a8 = a9 = a10 = a11 = a12 = 0.0
+        for k in range(m):
+            q = np.uint64(live[k])
+            lx, ly, d2 = geo[k, 0], geo[k, 1], geo[k, 2]
+            i, j = np.uint64(pair_ij[q, 0]), np.uint64(pair_ij[q, 1])
             ri, rj = radius[i], radius[j]
             rs = ri + rj
-            d2 = lx * lx + ly * ly
-            touching = d2 < rs * rs
-            if not touching and pair_hist[q, 3] == 0.0:
-                pair_f[q, 0] = 0.0
-                pair_f[q, 1] = 0.0
-                pair_f[q, 2] = 0.0
-                pair_f[q, 3] = 0.0
-                continue
             dist = math.sqrt(d2)
             inv = 1.0 / dist
             nx, ny = lx * inv, ly * inv
@@ -199,11 +216,11 @@ def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair
             delta = rs - dist
             li, lj = ri - 0.5 * delta, rj - 0.5 * delta
             spin = omega[i] * li + omega[j] * lj
-            wx = L[0, 0] * lx + L[0, 1] * ly + v[j, 0] - v[i, 0] - spin * tx
-            wy = L[1, 0] * lx + L[1, 1] * ly + v[j, 1] - v[i, 1] - spin * ty
+            wx = L00 * lx + L01 * ly + v[j, 0] - v[i, 0] - spin * tx
+            wy = L10 * lx + L11 * ly + v[j, 1] - v[i, 1] - spin * ty
             vn = wx * nx + wy * ny
             vt = wx * tx + wy * ty
-            if not touching:
+            if not d2 < rs * rs:
                 # the contact opened during this step: the forces of the last step did
                 # their work over this step's motion (to the overlap δ <= 0 now), and the
                 # energy stored in the springs is lost
@@ -214,10 +231,6 @@ def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair
                 a9 += 0.5 * kr * r0 * ((omega[j] - omega[i]) * dt + r0)
                 for a in range(4):
                     pair_hist[q, a] = 0.0
-                pair_f[q, 0] = 0.0
-                pair_f[q, 1] = 0.0
-                pair_f[q, 2] = 0.0
-                pair_f[q, 3] = 0.0
                 continue
             fn, ft, mr, xi, xr, fd, dd, dfr, drl = contact_response(
                 delta, pair_hist[q, 3], pair_hist[q, 2], vn, vt, omega[j] - omega[i],
@@ -261,7 +274,7 @@ NDISC_SUMS = 5  # Σ m v'x², Σ m v'y², Σ m v'x v'y, non-finite count, max di
 
 
 @njit(cache=True, parallel=True, fastmath=FASTMATH)
-def disc_pass(pair_f, inc_ptr, inc, force, torque, v, omega, s, s_ref, mass, inv_mass,
+def disc_pass(pair_f, row_ptr, inc_ptr, inc, force, torque, v, omega, s, s_ref, mass, inv_mass,
               inv_inertia, L_end, L_next, h_next, hmid_inv, half_dt, dt, gather, drift):
     """One pass over the discs: steps 6 and 2–3, fused across two consecutive steps.
 
@@ -286,17 +299,18 @@ def disc_pass(pair_f, inc_ptr, inc, force, torque, v, omega, s, s_ref, mass, inv
                 fx = 0.0
                 fy = 0.0
                 t = 0.0
-                for k in range(inc_ptr[p], inc_ptr[p + 1]):
-                    q = inc[k]
-                    if q >= 0:
-                        fx += pair_f[q, 0]
-                        fy += pair_f[q, 1]
-                        t += pair_f[q, 2]
-                    else:
-                        q = -q - 1
-                        fx -= pair_f[q, 0]
-                        fy -= pair_f[q, 1]
-                        t += pair_f[q, 3]
+                # the pairs in pair order: first those with p as j (i < p), listed in inc
+                # as -q-1, then those with p as i, rows row_ptr[p]..row_ptr[p+1] of the list
+                k1 = inc_ptr[p + 1] - (row_ptr[p + 1] - row_ptr[p])
+                for k in range(inc_ptr[p], k1):
+                    q = np.uint64(-inc[k] - 1)
+                    fx -= pair_f[q, 0]
+                    fy -= pair_f[q, 1]
+                    t += pair_f[q, 3]
+                for q in range(np.uint64(row_ptr[p]), np.uint64(row_ptr[p + 1])):
+                    fx += pair_f[q, 0]
+                    fy += pair_f[q, 1]
+                    t += pair_f[q, 2]
                 force[p, 0] = fx
                 force[p, 1] = fy
                 torque[p] = t
@@ -423,7 +437,7 @@ def _end_step(acc, h, L, dt, ps, ks, stress, stress_c):
 def advance_kernel(nsteps, mid_step, k0, ktotal, dt, kn, kt, mu, mu_roll, skin, r_max,
                    gdot_ref, tau_servo, l_max, radius, pair_const, mass, inv_mass, inv_inertia,
                    s, v, omega, force, torque, s_ref, h, h_ref, L, l_int, pair_ij, pair_shift,
-                   pair_hist, pair_f, n_pairs, inc_ptr, inc, rate, controlled,
+                   pair_hist, pair_f, n_pairs, row_ptr, inc_ptr, inc, rate, controlled,
                    target0, target1, stress, stress_c, stress_d, stiff, acc):
     """Up to ``nsteps`` steps (see the module doc); returns (steps completed, status).
 
@@ -440,8 +454,8 @@ def advance_kernel(nsteps, mid_step, k0, ktotal, dt, kn, kt, mu, mu_roll, skin, 
     if not mid_step:
         h_next, hmi = _next_cell(L, l_int, stress_c, stress_d, stiff, rate, controlled, target0,
                                  target1, (k0 + 1) / ktotal, dt, tau_servo, l_max, h)
-        ks = disc_pass(pair_f, inc_ptr, inc, force, torque, v, omega, s, s_ref, mass, inv_mass,
-                       inv_inertia, L_end, L, h_next, hmi, half, dt, False, True)
+        ks = disc_pass(pair_f, row_ptr, inc_ptr, inc, force, torque, v, omega, s, s_ref, mass,
+                       inv_mass, inv_inertia, L_end, L, h_next, hmi, half, dt, False, True)
         h[:, :] = h_next
         if _begin_step(acc, L, dt, gdot_ref, h, h_ref, ks[4], r_max, skin):
             return 0, NEED_REBUILD
@@ -457,8 +471,8 @@ def advance_kernel(nsteps, mid_step, k0, ktotal, dt, kn, kt, mu, mu_roll, skin, 
             h_next, hmi = _next_cell(L, l_int, stress_c, stress_d, stiff, rate, controlled,
                                      target0, target1, (k0 + k + 2) / ktotal, dt, tau_servo,
                                      l_max, h)
-        ks = disc_pass(pair_f, inc_ptr, inc, force, torque, v, omega, s, s_ref, mass, inv_mass,
-                       inv_inertia, L_end, L, h_next, hmi, half, dt, True, not last)
+        ks = disc_pass(pair_f, row_ptr, inc_ptr, inc, force, torque, v, omega, s, s_ref, mass,
+                       inv_mass, inv_inertia, L_end, L, h_next, hmi, half, dt, True, not last)
         _end_step(acc, h, L_end, dt, ps, ks, stress, stress_c)
         if ks[3] != 0.0:
             return k + 1, NOT_FINITE
@@ -494,9 +508,10 @@ def _evaluate_forces(state: State, dyn: Dynamics) -> State:
                      state.pair_hist, state.pair_f, state.n_pairs, kn, kt, mu, mu_roll, 0.0)
     _contact_stress(state.h, ps, state.stress_contact, state.stress_damping, state.stiff)
     none = np.zeros((2, 2))
-    ks = disc_pass(state.pair_f, state.inc_ptr, state.inc, state.force, state.torque, state.v,
-                   state.omega, state.s, state.s_ref, state.mass, state.inv_mass,
-                   state.inv_inertia, state.L, state.L, none, none, 0.0, 0.0, True, False)
+    ks = disc_pass(state.pair_f, state.row_ptr, state.inc_ptr, state.inc, state.force,
+                   state.torque, state.v, state.omega, state.s, state.s_ref, state.mass,
+                   state.inv_mass, state.inv_inertia, state.L, state.L, none, none, 0.0, 0.0,
+                   True, False)
     state.stress[:] = state.stress_contact - ks[:3] / state.volume
     return state
 
@@ -526,7 +541,7 @@ def _advance(state: State, dyn: Dynamics, nsteps: int, control: Control) -> Stat
             state.mass, state.inv_mass, state.inv_inertia, state.s, state.v, state.omega,
             state.force, state.torque, state.s_ref, state.h, state.h_ref, state.L, state.L_int,
             state.pair_ij, state.pair_shift, state.pair_hist, state.pair_f, state.n_pairs,
-            state.inc_ptr, state.inc, np.asarray(control.rate, float), controlled,
+            state.row_ptr, state.inc_ptr, state.inc, np.asarray(control.rate, float), controlled,
             np.asarray(control.target0, float), np.asarray(control.target1, float),
             state.stress, state.stress_contact, state.stress_damping, state.stiff, state.acc)
         state.step += done

@@ -2,7 +2,9 @@
 
 1. :func:`random_gas`: N discs at packing fraction ``c_gas`` in a square cell, placed
    without overlap on randomly chosen sites of a square grid with a random offset each,
-   at rest.
+   at rest. The discs are numbered along the grid rows, so that discs near each other
+   are near in memory (the pair pass reads both discs of a pair: with random numbering it
+   runs about 10 % slower at N = 4000).
 2. :func:`compress_to_pressure`: both normal stresses servo-controlled to -P0
    (:mod:`dem.servo`, strain rate capped at ``rate``) with the preparation friction
    μ_prep (the packing knob: μ_prep = 0 gives dense samples, μ_prep = μ the usual
@@ -46,6 +48,9 @@ from dem.particles import ParticleError
 from dem.periodic_cell import square_cell
 from dem.state import NACC, State, new_state
 
+VERSION = 2
+"""Version of the preparation: raised whenever a seed's settings give a different sample
+(caches of prepared samples are keyed on it)."""
 C_MAX = 0.92
 E_SWITCH = 0.05
 P_TOL = 1e-3
@@ -90,7 +95,7 @@ def random_gas(radius: np.ndarray, c_gas: float, rng: np.random.Generator) -> St
     if a <= 2.0 * radius.max():
         raise PreparationError(f"gas packing fraction c_gas = {c_gas} too dense to place "
                                f"{n} discs on a grid; accepted (0, {c_gas * (a / (2 * radius.max())) ** 2:.3f})")
-    sites = rng.permutation(k * k)[:n]
+    sites = np.sort(rng.permutation(k * k)[:n])   # numbered along the grid rows
     grid = np.stack([sites % k, sites // k], axis=1).astype(float)
     free = 0.5 * a - radius[:, None]
     x = (grid + 0.5) * a + (2.0 * rng.random((n, 2)) - 1.0) * free

@@ -1,13 +1,16 @@
 """Time stepping: energy conservation (acceptance 2), the energy balance, threads, dt limit."""
+import math
+
 import numba
 import numpy as np
 import pytest
 
 from conftest import make_dynamics
-from dem import integrator, threads
+from dem import integrator, neighbours, threads
 from dem.contact_law import ContactLaw
 from dem.integrator import Control, TimeStepError, advance, evaluate_forces, stable_fraction, time_step
 from dem.measure import energies, love_weber
+from dem.state import new_state
 
 
 def test_frictionless_undamped_energy_drift_below_1e6_over_1e5_steps(packing_frictionless):
@@ -55,10 +58,23 @@ def test_kernel_stress_is_the_love_weber_stress(packing_frictional):
     assert st.stress[0] < 0 and st.stress[1] < 0
 
 
+def _tiled(st, k):
+    """The packing repeated k x k times in a k times larger cell (at rest, no histories)."""
+    offsets = np.array([(a, b) for b in range(k) for a in range(k)], float)
+    s = ((st.s % 1.0)[None, :, :] + offsets[:, None, :]).reshape(-1, 2) / k
+    out = new_state(np.tile(st.radius, k * k), s, st.h * k)
+    neighbours.rebuild(out, 0.2)
+    return out
+
+
 def test_parallel_and_serial_runs_are_bitwise_equal(packing_frictional):
+    # 3 x 3 copies of the packing: more discs and pairs than one chunk of either pass
+    tiled = _tiled(packing_frictional, 3)
+    assert tiled.n > integrator.CHUNK and tiled.n_pairs > 2 * integrator.CHUNK
+    tiled.v[:] = np.random.default_rng(5).normal(size=tiled.v.shape) * 0.01
     results = []
     for nt in (1, numba.config.NUMBA_NUM_THREADS):
-        st = packing_frictional.copy()
+        st = tiled.copy()
         dyn = make_dynamics(st, gdot=1e-2)
         ctl = Control(np.array([0.0, -1e-2, 0.5e-2, 0.0]), np.array([True, False, False, False]),
                       np.array([-1.0, -1.0, 0.0]), np.array([-1.0, -1.0, 0.0]))
@@ -106,3 +122,151 @@ def test_time_step_above_stability_limit_is_refused():
     assert time_step(law, 1.0, limit) == pytest.approx(limit * 1e-2)
     with pytest.raises(TimeStepError, match=rf"fraction {1.01 * limit} .*accepted range \(0, "):
         time_step(law, 1.0, 1.01 * limit)
+
+
+def _reference_forces(st, law, dt):
+    """Forces, torques, contact stress · V and the new tangential histories of every
+    touching pair, found by brute force over all pairs and images and evaluated from the
+    contact law as documented (:mod:`dem.contact_law`), in plain Python."""
+    kn, kt, beta, mu = law.kn, law.kt, law.beta, law.mu
+    x = st.s @ st.h.T
+    hist = {(int(i), int(j), int(a), int(b)): st.pair_hist[q].copy()
+            for q, ((i, j), (a, b)) in enumerate(zip(st.pair_ij[:st.n_pairs],
+                                                      st.pair_shift[:st.n_pairs]))}
+    force, torque = np.zeros((st.n, 2)), np.zeros(st.n)
+    sigma_v, new_hist = np.zeros(3), {}
+    for i in range(st.n):
+        for j in range(i + 1, st.n):
+            for a in (-1, 0, 1):
+                for b in (-1, 0, 1):
+                    l = x[j] + st.h @ np.array([a, b]) - x[i]
+                    dist = math.hypot(l[0], l[1])
+                    ri, rj = st.radius[i], st.radius[j]
+                    if dist >= ri + rj:
+                        continue
+                    n = l / dist
+                    t = np.array([-n[1], n[0]])
+                    delta = ri + rj - dist
+                    li, lj = ri - delta / 2, rj - delta / 2
+                    w = st.L @ l + st.v[j] - st.v[i] - (st.omega[i] * li + st.omega[j] * lj) * t
+                    m_eff = st.mass[i] * st.mass[j] / (st.mass[i] + st.mass[j])
+                    fn = max(0.0, kn * delta - 2 * beta * math.sqrt(m_eff * kn) * (w @ n))
+                    trial = hist.get((i, j, a, b), np.zeros(4))[0] + (w @ t) * dt
+                    xi = max(-mu * fn / kt, min(mu * fn / kt, trial))
+                    f = -fn * n + kt * xi * t
+                    force[i] += f
+                    force[j] -= f
+                    torque[i] += li * kt * xi
+                    torque[j] += lj * kt * xi
+                    sigma_v += [f[0] * l[0], f[1] * l[1], 0.5 * (f[0] * l[1] + f[1] * l[0])]
+                    new_hist[(i, j, a, b)] = (xi, delta, xi != trial)
+    return force, torque, sigma_v, new_hist
+
+
+def test_one_step_of_forces_and_histories_matches_a_plain_python_evaluation(packing_frictional):
+    # a sheared frictional packing (contacts sticking, sliding, closing and opening):
+    # the optimized pair and disc passes against the contact law evaluated pair by pair
+    st = packing_frictional.copy()
+    dyn = make_dynamics(st, gdot=1e-2)
+    ctl = Control(np.array([0.0, -1e-2, 0.5e-2, 0.0]), np.array([True, False, False, False]),
+                  np.array([-1.0, -1.0, 0.0]), np.array([-1.0, -1.0, 0.0]))
+    advance(st, dyn, 300, ctl)
+    st.v += np.random.default_rng(3).normal(size=st.v.shape) * 0.02
+    st.omega += np.random.default_rng(4).normal(size=st.n) * 0.05
+    force, torque, sigma_v, new_hist = _reference_forces(st, dyn.law, dyn.dt)
+    assert len(new_hist) > 200 and sum(slid for _, _, slid in new_hist.values()) > 5
+    kn, kt, beta, mu, mu_roll = dyn.law.kernel_params()
+    const = integrator.pair_constants(st.pair_ij, st.n_pairs, st.radius, st.mass, kn, beta)
+    ps = integrator.pair_forces(st.h, st.L, st.s, st.v, st.omega, st.radius, const, st.pair_ij,
+                                st.pair_shift, st.pair_hist, st.pair_f, st.n_pairs, kn, kt, mu,
+                                mu_roll, dyn.dt)
+    none = np.zeros((2, 2))
+    integrator.disc_pass(st.pair_f, st.row_ptr, st.inc_ptr, st.inc, st.force, st.torque,
+                         st.v.copy(), st.omega.copy(), st.s, st.s_ref, st.mass, st.inv_mass,
+                         st.inv_inertia, st.L, st.L, none, none, 0.0, 0.0, True, False)
+    scale = np.abs(force).max()
+    assert np.allclose(st.force, force, rtol=0, atol=1e-11 * scale)
+    assert np.allclose(st.torque, torque, rtol=0, atol=1e-11 * scale)
+    assert np.allclose(ps[:3], sigma_v, rtol=1e-11, atol=1e-11 * np.abs(sigma_v).max())
+    got = {}
+    for q in range(st.n_pairs):
+        key = (int(st.pair_ij[q, 0]), int(st.pair_ij[q, 1]), int(st.pair_shift[q, 0]),
+               int(st.pair_shift[q, 1]))
+        if st.pair_hist[q, 3] != 0.0:
+            got[key] = (st.pair_hist[q, 0], st.pair_hist[q, 3])
+        else:
+            assert not np.any(st.pair_hist[q])      # apart: no history left
+    assert got.keys() == new_hist.keys()
+    for key, (xi, d, _) in new_hist.items():
+        assert abs(got[key][0] - xi) <= 1e-10 * dyn.law.mu * dyn.law.kn * d / dyn.law.kt + 1e-18
+        assert abs(got[key][1] - d) <= 1e-12
+
+
+def _reference_trajectory(st, law, dt, L, nsteps):
+    """(s, v', ω) after ``nsteps`` steps of the module doc's velocity Verlet with a
+    prescribed L (kick, Cayley map of the cell, drift, forces, kick), the forces from the
+    contact law in numpy over the state's pair list, kept fixed (wide enough for the run)."""
+    n = st.n_pairs
+    i, j, shift = st.pair_ij[:n, 0], st.pair_ij[:n, 1], st.pair_shift[:n].astype(float)
+    ri, rj = st.radius[i], st.radius[j]
+    gamma = 2 * law.beta * np.sqrt(st.mass[i] * st.mass[j] / (st.mass[i] + st.mass[j]) * law.kn)
+    xi = st.pair_hist[:n, 0].copy()
+    s, h, v, w = st.s.copy(), st.h.copy(), st.v.copy(), st.omega.copy()
+
+    def forces(xi, step):
+        l = (s[j] + shift - s[i]) @ h.T
+        dist = np.hypot(l[:, 0], l[:, 1])
+        touching = dist < ri + rj
+        nrm = l / dist[:, None]
+        t = np.stack([-nrm[:, 1], nrm[:, 0]], axis=1)
+        delta = ri + rj - dist
+        li, lj = ri - delta / 2, rj - delta / 2
+        rel = l @ L.T + v[j] - v[i] - (w[i] * li + w[j] * lj)[:, None] * t
+        vn, vt = np.sum(rel * nrm, axis=1), np.sum(rel * t, axis=1)
+        fn = np.where(touching, np.maximum(0.0, law.kn * delta - gamma * vn), 0.0)
+        cap = law.mu * fn / law.kt
+        xi = np.where(touching, np.clip(xi + vt * step, -cap, cap), 0.0)
+        f = -fn[:, None] * nrm + law.kt * xi[:, None] * t
+        force, torque = np.zeros((st.n, 2)), np.zeros(st.n)
+        np.add.at(force, i, f)
+        np.add.at(force, j, -f)
+        np.add.at(torque, i, li * law.kt * xi)
+        np.add.at(torque, j, lj * law.kt * xi)
+        return force, torque, xi
+
+    force, torque, _ = forces(xi, 0.0)
+    a = np.eye(2) - 0.5 * dt * L
+    cayley = np.linalg.solve(a, np.eye(2) + 0.5 * dt * L)
+    for _ in range(nsteps):
+        v = v + 0.5 * dt * (force / st.mass[:, None] - v @ L.T)
+        w = w + 0.5 * dt * torque * st.inv_inertia
+        h_new = cayley @ h
+        s = s + dt * v @ np.linalg.inv(0.5 * (h + h_new)).T
+        h = h_new
+        force, torque, xi = forces(xi, dt)
+        v = v + 0.5 * dt * (force / st.mass[:, None] - v @ L.T)
+        w = w + 0.5 * dt * torque * st.inv_inertia
+    return s, v, w
+
+
+def test_a_thousand_steps_of_shear_match_a_numpy_velocity_verlet(packing_frictional):
+    # the optimized step (fused passes, live-pair compaction, list rebuilds) against the
+    # module doc's scheme written out in numpy: the same trajectory to rounding. Rounding
+    # differences grow about e-fold per 100 steps in this dense packing (measured 6e-13
+    # in s, 1e-9 relative in v' and ω after 1000 steps, 3e-5 relative after 3000)
+    st = packing_frictional.copy()
+    dyn = make_dynamics(st, gdot=1e-2)
+    neighbours.rebuild(st, 0.6)                   # a list for the reference's whole run
+    st.v[:] = np.random.default_rng(6).normal(size=st.v.shape) * 0.01
+    L = np.array([[2e-3, 1e-2], [0.0, -3e-3]])
+    st.L[:] = L
+    evaluate_forces(st, dyn)
+    image0 = st.image.copy()
+    s, v, w = _reference_trajectory(st, dyn.law, dyn.dt, L, 1000)
+    ctl = Control(np.array([L[0, 0], L[1, 1], L[0, 1], L[1, 0]]), np.zeros(4, bool),
+                  np.zeros(3), np.zeros(3))
+    advance(st, dyn, 1000, ctl)
+    assert st.rebuilds > packing_frictional.rebuilds + 1
+    assert np.abs(st.s + st.image - image0 - s).max() < 1e-9
+    assert np.abs(st.v - v).max() < 1e-6 * np.abs(v).max()
+    assert np.abs(st.omega - w).max() < 1e-6 * np.abs(w).max()

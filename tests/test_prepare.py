@@ -16,6 +16,15 @@ def test_prepared_samples_meet_thresholds_and_friction_loosens(packing_frictionl
     assert 0.82 < packing_frictionless.packing_fraction < 0.86
 
 
+def test_the_gas_is_numbered_along_the_grid_rows():
+    # discs near in space are near in memory: each disc sits in its own grid site, and
+    # the site index (row by row) grows with the disc number
+    st = random_gas(np.full(50, 0.5), 0.3, np.random.default_rng(0))
+    k = 8                                       # ceil(sqrt(50)) sites per row
+    site = np.floor(st.s * k).astype(int)
+    assert np.all(np.diff(site[:, 1] * k + site[:, 0]) > 0)
+
+
 def test_target_fraction_above_jamming_range_is_refused():
     rng = np.random.default_rng(0)
     st = random_gas(np.full(50, 0.5), 0.3, rng)

