@@ -49,6 +49,7 @@ from contfab.selection.auto_tier import Choice, params_for
 from contfab.fem.elements import ELEMENTS
 from contfab.fem.output import plot_field
 from contfab.fem.material import TierMaterial
+from contfab.fem.nonlocal_density import NonlocalMaterial
 from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver, Stage
 from contfab.material_point import run_path
 from contfab.params import ParamError, default_params, load_params
@@ -83,12 +84,53 @@ def band_angle(disc: Discretization, dgp: np.ndarray) -> float:
     return min(angle, 180.0 - angle)
 
 
+def band_width(disc: Discretization, dgp: np.ndarray, angle: float) -> float:
+    """Full width at half maximum of the band of plastic shear strain increment ``dgp``
+    (per quadrature point) across the band direction ``angle`` (degrees to the horizontal,
+    either sense: the one whose profile peaks higher).
+
+    The points are binned along the band normal in bins a quarter of the mean element size
+    wide; each bin holds the quadrature-weighted mean of ``dgp`` (the mean increment along
+    the line, so the specimen's shorter chords at the corners do not count less). The width
+    is the distance between the half-maximum crossings either side of the fullest bin
+    (linear interpolation between bin centres). NaN if ``angle`` is NaN.
+    """
+    if not math.isfinite(angle):
+        return math.nan
+    w = disc.weights.ravel()
+    step = 0.25 * math.sqrt(disc.area() / disc.ne)
+    best = (-1.0, math.nan)
+    for theta in (math.radians(angle), math.pi - math.radians(angle)):
+        s = disc.points @ np.array([-math.sin(theta), math.cos(theta)])
+        bins = np.floor((s - s.min()) / step).astype(np.int64)
+        area = np.bincount(bins, weights=w)
+        profile = np.bincount(bins, weights=w * dgp) / np.where(area > 0, area, 1.0)
+        k = int(np.argmax(profile))
+        half = 0.5 * profile[k]
+        lo = k
+        while lo > 0 and profile[lo - 1] > half:
+            lo -= 1
+        hi = k
+        while hi < len(profile) - 1 and profile[hi + 1] > half:
+            hi += 1
+        left = lo - (0.0 if lo == 0 else (profile[lo] - half) / (profile[lo] - profile[lo - 1]))
+        right = hi + (0.0 if hi == len(profile) - 1 else
+                      (profile[hi] - half) / (profile[hi] - profile[hi + 1]))
+        if profile[k] > best[0]:
+            best = (profile[k], (right - left) * step)
+    return best[1]
+
+
 def solve(params, element: str, level: int, dense: float, strain: float, out: Path | None,
-          progress: bool, lam: float | None = None, tier=1, homogeneous: bool = False) -> dict:
+          progress: bool, lam: float | None = None, tier=1, homogeneous: bool = False,
+          length: float = 0.0, weight: float = 1.0, dt_max: float = 0.02) -> dict:
     """One biaxial test with model ``tier`` (default 1; an array: a tier per quadrature
-    point); returns the peak, the end state, the band angle and Newton figures.
+    point); returns the peak, the end state, the band angle and width and Newton figures.
     ``homogeneous``: smooth platens and no imperfection (the field stays homogeneous: the
-    material point's biaxial path; no band, angle NaN)."""
+    material point's biaxial path; no band, angle NaN). ``length`` > 0: the nonlocal
+    packing fraction of :mod:`contfab.fem.nonlocal_density` with internal length ``length``
+    (specimen width 1) and weight ``weight`` (m); 0 the local model. ``dt_max``: the
+    largest step, a fraction of the push."""
     if not 1 <= level <= 6:
         raise ParamError(f"mesh level = {level} is outside the accepted range [1, 6]")
     low = -0.05 if homogeneous else 0.0       # a loose specimen hardens: no band to trigger
@@ -97,6 +139,11 @@ def solve(params, element: str, level: int, dense: float, strain: float, out: Pa
                          f"({low:g}, 0.08]")
     if not 0.0 < strain <= 0.2:
         raise ParamError(f"strain = {strain:g} is outside the accepted range (0, 0.2]")
+    if not (math.isfinite(length) and 0.0 <= length <= 0.5 * WIDTH):
+        raise ParamError(f"internal length = {length:g} is outside the accepted range "
+                         f"[0, {0.5 * WIDTH:g}] (0: local; units of the specimen width)")
+    if not 0.0 < dt_max <= 0.2:
+        raise ParamError(f"dt_max = {dt_max:g} is outside the accepted range (0, 0.2]")
     p0 = 1.0
     c_star = params.tier1.c_star
     mixed = np.ndim(tier) > 0
@@ -115,6 +162,8 @@ def solve(params, element: str, level: int, dense: float, strain: float, out: Pa
                              np.linspace(0, HEIGHT, 20 * level + 1), kind="quad")
     disc = Discretization(mesh, element)
     material = TierMaterial(params, point_tiers=tier) if mixed else TierMaterial(params, tier=tier)
+    if length > 0.0:
+        material = NonlocalMaterial(material, disc, length, weight)
     n = disc.npoints
     state0 = material.initial_state(n)
     x, y = disc.points.T
@@ -133,7 +182,7 @@ def solve(params, element: str, level: int, dense: float, strain: float, out: Pa
     f_dead = loads.surface_load(disc, "left", pressure=p0) + \
         loads.surface_load(disc, "right", pressure=p0)
     stage = Stage("compress", fixed, np.where(np.isin(fixed, top), -strain * HEIGHT, 0.0),
-                  f_dead, dt0=0.01, dt_max=0.02, dt_min=1e-5)
+                  f_dead, dt0=min(0.01, dt_max), dt_max=dt_max, dt_min=1e-5)
 
     def measure(s: Solver) -> dict:
         sigma1 = -s.reactions(top) / WIDTH
@@ -142,7 +191,8 @@ def solve(params, element: str, level: int, dense: float, strain: float, out: Pa
                 "sin_phi_mob": (sigma1 - p0) / (sigma1 + p0)}
 
     name = f"biaxial_shear_band_{element}_L{level}" + (
-        "_mixed" if mixed else "" if tier == 1 else f"_tier{tier}")
+        "_mixed" if mixed else "" if tier == 1 else f"_tier{tier}") + (
+        f"_nl{length:g}_m{weight:g}" if length > 0 else "")
     outputs = analysis.Outputs(out, name, frame_every=10, curve_axes=("axial_strain", "stress_ratio"))
     gp_marks = []
     t0 = time.perf_counter()
@@ -160,10 +210,12 @@ def solve(params, element: str, level: int, dense: float, strain: float, out: Pa
     ratio = result.column("stress_ratio")
     t = result.column("t")
     gp = [g for tt, g in gp_marks if tt >= 0.9 * t[-1]]
-    dgp = disc.element_mean(solver.committed.state[:, 0] - gp[0])
+    dgp_points = solver.committed.state[:, 0] - gp[0]
+    angle = math.nan if homogeneous else band_angle(disc, disc.element_mean(dgp_points))
     c_col = material.state_names.index("c") if "c" in material.state_names else None
     return {"peak": float(ratio.max()), "peak_strain": float(result.column("axial_strain")[np.argmax(ratio)]),
-            "end": float(ratio[-1]), "angle": math.nan if homogeneous else band_angle(disc, dgp),
+            "end": float(ratio[-1]), "angle": angle,
+            "band_width": band_width(disc, dgp_points, angle), "h": h,
             "curve": {k: result.column(k) for k in ("axial_strain", "stress_ratio", "sin_phi_mob")},
             "params": params,
             "phi0": phi0, "psi0": psi0, "dofs": disc.ndofs,
