@@ -164,7 +164,7 @@ def test_band_references_are_roscoe_arthur_coulomb_of_the_peak_state_never_the_a
 
     biax = load_case("biaxial_shear_band")
     run = {"peak": 3.0, "peak_strain": 0.01, "end": 2.5, "angle": 53.0, "phi0": 30.0,
-           "psi0": 10.0, "band_c_min": 0.8, "dofs": 1, "wall_s": 0.0, "steps": 1,
+           "psi0": 10.0, "band_c_min": 0.8, "band_width": 0.1, "h": 0.1, "dofs": 1, "wall_s": 0.0, "steps": 1,
            "median_newton": 1.0, "files": []}
     monkeypatch.setattr(biax, "solve", lambda *a, **k: run)
     args = build_parser(biax, "x").parse_args([])
@@ -333,7 +333,7 @@ def test_a_failed_study_run_is_recorded_and_the_others_still_run(monkeypatch):
 
     biax = load_case("biaxial_shear_band")
     main_run = {"peak": 3.0, "peak_strain": 0.01, "end": 2.5, "angle": 50.0, "phi0": 30.0,
-                "psi0": 10.0, "band_c_min": 0.8, "dofs": 1, "wall_s": 0.0, "steps": 1,
+                "psi0": 10.0, "band_c_min": 0.8, "band_width": 0.1, "h": 0.1, "dofs": 1, "wall_s": 0.0, "steps": 1,
                 "median_newton": 1.0, "files": []}
 
     def fake_biax(params, element, level, dense, strain, out, progress, lam=None, **kw):

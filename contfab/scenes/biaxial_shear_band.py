@@ -25,7 +25,13 @@ range (``in_roscoe_coulomb``).
 Softening without an internal length makes the post-peak branch mesh dependent (the
 band is as thin as the elements allow): ``--study`` runs mesh levels 1..3 and λ, 10λ,
 and reports the post-peak stress ratio at the end of the push per mesh, and the peak
-change with λ (the rigid-plastic limit). A study run whose Newton fails is recorded in
+change with λ (the rigid-plastic limit). ``--internal-length ℓ`` (units of the
+specimen width W = 1) gives the softening a length: the nonlocal packing fraction of
+:mod:`contfab.fem.nonlocal_density`, c_eff = c + m (c̄ − c) with the Gaussian average c̄ over ℓ
+and ``--nonlocal-weight`` m (default 2, over-nonlocal); the band then has a width set by ℓ
+(``band_width``: the full width at half maximum of the plastic shear strain increment
+across the band, :func:`band_width`), and ``--study`` runs its levels with the same ℓ.
+A study run whose Newton fails is recorded in
 the notes (message, last converged strain and stress ratio, the peak so far) and the
 others still run; a failure of the main run is an error.
 """
@@ -59,6 +65,8 @@ DESCRIPTION = "dense biaxial specimen, rough platens: peak, softening, shear-ban
 WIDTH, HEIGHT = 1.0, 2.5
 DEFAULT_DENSE = 0.03
 """c0 - c* of the default dense specimen."""
+DEFAULT_WEIGHT = 2.0
+"""m of the nonlocal packing fraction when --internal-length is given."""
 SPOT = (0.0, 0.3 * HEIGHT, 0.15 * WIDTH, 0.01)
 """Imperfection: centre x, y, radius, and how much lower its c is."""
 
@@ -142,6 +150,8 @@ def solve(params, element: str, level: int, dense: float, strain: float, out: Pa
     if not (math.isfinite(length) and 0.0 <= length <= 0.5 * WIDTH):
         raise ParamError(f"internal length = {length:g} is outside the accepted range "
                          f"[0, {0.5 * WIDTH:g}] (0: local; units of the specimen width)")
+    if not (math.isfinite(weight) and weight >= 1.0):
+        raise ParamError(f"nonlocal weight m = {weight:g} is outside the accepted range [1, inf)")
     if not 0.0 < dt_max <= 0.2:
         raise ParamError(f"dt_max = {dt_max:g} is outside the accepted range (0, 0.2]")
     p0 = 1.0
@@ -251,6 +261,14 @@ def add_arguments(p) -> None:
                         "model) and at tier 1, and report the differences and the saving")
     p.add_argument("--study", action="store_true",
                    help="also mesh levels 1..3 (post-peak mesh dependence) and 10 lambda")
+    p.add_argument("--internal-length", type=float, default=0.0,
+                   help="internal length l of the nonlocal packing fraction, in units of the "
+                        "specimen width (contfab.fem.nonlocal_density; default 0: local)")
+    p.add_argument("--nonlocal-weight", type=float, default=DEFAULT_WEIGHT,
+                   help=f"m of c_eff = c + m (c_avg - c), >= 1 (default {DEFAULT_WEIGHT:g}: "
+                        "over-nonlocal; 1: plain nonlocal)")
+    p.add_argument("--dt-max", type=float, default=0.02,
+                   help="largest step as a fraction of the push (default 0.02)")
 
 
 def _homogeneous_result(r: dict, auto: dict | None, args) -> CaseResult:
@@ -277,7 +295,7 @@ def compare_uniform(r: dict, auto: dict, params, args) -> dict:
     auto run's strain grid, peak and end σ1/σ3, wall time and point updates."""
     p2 = params_for(params, Choice(**auto["reversal"]))
     runs = {t: solve(p2, args.element, args.level, args.dense, args.strain, None, False, tier=t,
-                     homogeneous=args.homogeneous) for t in (2, 1)}
+                     homogeneous=args.homogeneous, **nonlocal_options(args)) for t in (2, 1)}
     ref = runs[2]["curve"]
 
     def diff(run: dict) -> np.ndarray:
@@ -297,8 +315,15 @@ def compare_uniform(r: dict, auto: dict, params, args) -> dict:
     return out
 
 
-STUDY_KEYS = ("dofs", "peak", "peak_strain", "end", "angle", "steps", "median_newton", "wall_s")
+STUDY_KEYS = ("dofs", "h", "peak", "peak_strain", "end", "angle", "band_width", "steps",
+              "median_newton", "wall_s")
 """What ``--study`` records of each of its runs."""
+
+
+def nonlocal_options(args) -> dict:
+    """The internal length, nonlocal weight and largest step of ``args`` for :func:`solve`."""
+    return {"length": args.internal_length, "weight": args.nonlocal_weight,
+            "dt_max": args.dt_max}
 
 
 def run(args) -> CaseResult:
@@ -318,11 +343,13 @@ def run(args) -> CaseResult:
     if args.tier == "auto":
         r, auto = run_auto(lambda p, t: solve(p, args.element, args.level, args.dense,
                                               args.strain, args.out, not args.quiet, tier=t,
-                                              homogeneous=args.homogeneous),
+                                              homogeneous=args.homogeneous,
+                                              **nonlocal_options(args)),
                            params, args.tolerance, min_tier=1)
     else:
         r = solve(params, args.element, args.level, args.dense, args.strain, args.out,
-                  not args.quiet, tier=int(args.tier), homogeneous=args.homogeneous)
+                  not args.quiet, tier=int(args.tier), homogeneous=args.homogeneous,
+                  **nonlocal_options(args))
     if args.homogeneous:
         return _homogeneous_result(r, auto, args)
     coulomb = 45 + r["phi0"] / 2
@@ -335,7 +362,9 @@ def run(args) -> CaseResult:
                Figure("band angle vs Coulomb [deg]", r["angle"], coulomb,
                       "Coulomb (1773): 45 + phi/2")]
     notes = {k: r[k] for k in ("peak", "peak_strain", "end", "phi0", "psi0", "band_c_min",
-                               "dofs", "wall_s", "steps", "median_newton")}
+                               "band_width", "h", "dofs", "wall_s", "steps", "median_newton")}
+    notes["internal_length"] = args.internal_length
+    notes["nonlocal_weight"] = args.nonlocal_weight if args.internal_length > 0 else None
     notes["in_roscoe_coulomb"] = roscoe <= r["angle"] <= coulomb
     notes["softening"] = r["end"] / r["peak"] - 1.0
     if auto is not None:
@@ -347,7 +376,7 @@ def run(args) -> CaseResult:
         t0 = time.perf_counter()
         try:
             stiff = solve(params, args.element, args.level, args.dense, args.strain, None,
-                          False, lam=10 * lam)
+                          False, lam=10 * lam, **nonlocal_options(args))
             notes["peak_change_10x_lambda"] = stiff["peak"] / r["peak"] - 1.0
             notes["lambda_10x"] = {k: stiff[k] for k in STUDY_KEYS}
         except ConvergenceError as exc:
@@ -357,7 +386,8 @@ def run(args) -> CaseResult:
             t0 = time.perf_counter()
             try:
                 m = r if level == args.level else solve(params, args.element, level, args.dense,
-                                                        args.strain, None, False)
+                                                        args.strain, None, False,
+                                                        **nonlocal_options(args))
                 notes[f"level{level}"] = {k: m[k] for k in STUDY_KEYS}
             except ConvergenceError as exc:
                 notes[f"level{level}"] = failure_note(exc, "stress_ratio", "axial_strain")
