@@ -16,7 +16,7 @@ the sum over the elements within ``cutoff``·ℓ (default 3ℓ: g(3ℓ) = 1.2e-4
 plain nonlocal model (c_eff = c̄ up to the point's deviation from its element mean);
 m > 1 is the over-nonlocal variant of Vermeer & Brinkgreve (1994), whose local part
 c (1 − m) is negative: it keeps the softening from concentrating into a band thinner than
-ℓ, which the plain average allows (Brinkgreve 1994, ch. 4; Strömberg & Ristinmaa 1996).
+ℓ, which the plain average allows (Brinkgreve 1994; Jirásek & Rolshoven 2003).
 
 Convention. ℓ is in the mesh's length unit; g is the Gaussian of the nonlocal
 literature written with ℓ (not ℓ/√2 or ℓ/2): its second moment in 2D is ℓ²/2 per
@@ -41,8 +41,7 @@ References: Pijaudier-Cabot & Bažant (1987) J. Eng. Mech. 113(10), 1512–1533 
 damage); Vermeer & Brinkgreve (1994) "A new effective non-local strain measure for
 softening plasticity", in Localisation and Bifurcation Theory for Soils and Rocks,
 Balkema, 89–100; Brinkgreve (1994) Geomaterial models and numerical analysis of softening,
-PhD thesis, TU Delft; Strömberg & Ristinmaa (1996) Comput. Methods Appl. Mech. Eng. 136,
-127–144.
+PhD thesis, TU Delft; Jirásek & Rolshoven (2003) Int. J. Eng. Sci. 41, 1553–1602.
 """
 from __future__ import annotations
 
