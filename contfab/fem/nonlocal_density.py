@@ -33,9 +33,13 @@ Time integration (staggered, explicit in the average): δ is computed from the s
 the start of the step (the committed state the solver passes to every update of a step)
 and held fixed during the step's Newton iterations; the wrapped material's update runs on
 the state with c shifted by δ, and the shift is taken back from the updated state. The
-Newton matrix is the local material's consistent tangent at fixed δ, so Newton stays
-quadratic; the price is a lag of one step in the average, an error of first order in the
-step size (measured in docs/fem_validation.md §3).
+Newton matrix is the local material's consistent tangent at fixed δ (exact for the step's
+problem); the price is a lag of one step in the average, an error of first order in the
+step size, and a step problem that is the local softening one: inside a step a point's own
+dilation softens it at the full local rate, while the converged over-nonlocal model weighs
+it by 1 − m(1 − A_ee) < 0. Where the plastic zone is ℓ wide its points then flip between
+elastic unloading and plastic loading from one iteration to the next, and Newton needs many
+iterations and small steps (measured in docs/fem_validation.md §3).
 
 References: Pijaudier-Cabot & Bažant (1987) J. Eng. Mech. 113(10), 1512–1533 (nonlocal
 damage); Vermeer & Brinkgreve (1994) "A new effective non-local strain measure for
