@@ -28,7 +28,7 @@ and reports the post-peak stress ratio at the end of the push per mesh, and the 
 change with λ (the rigid-plastic limit). ``--internal-length ℓ`` (units of the
 specimen width W = 1) gives the softening a length: the nonlocal packing fraction of
 :mod:`contfab.fem.nonlocal_density`, c_eff = c + m (c̄ − c) with the Gaussian average c̄ over ℓ
-and ``--nonlocal-weight`` m (default 1.5, over-nonlocal); the band then has a width set by ℓ
+and ``--nonlocal-weight`` m (default 1.25, over-nonlocal); the band then has a width set by ℓ
 (``band_width``: the full width at half maximum of the plastic shear strain increment
 across the band, :func:`band_width`), and ``--study`` runs its levels with the same ℓ.
 A study run whose Newton fails is recorded in
@@ -65,7 +65,7 @@ DESCRIPTION = "dense biaxial specimen, rough platens: peak, softening, shear-ban
 WIDTH, HEIGHT = 1.0, 2.5
 DEFAULT_DENSE = 0.03
 """c0 - c* of the default dense specimen."""
-DEFAULT_WEIGHT = 1.5
+DEFAULT_WEIGHT = 1.25
 """m of the nonlocal packing fraction when --internal-length is given."""
 SPOT = (0.0, 0.3 * HEIGHT, 0.15 * WIDTH, 0.01)
 """Imperfection: centre x, y, radius, and how much lower its c is."""
