@@ -155,6 +155,24 @@ def test_biaxial_band_angle_within_5_degrees_of_roscoe_coulomb_and_softening():
     assert result.notes["peak"] == pytest.approx((1 + s) / (1 - s), rel=0.02)
 
 
+def test_band_width_is_the_full_width_at_half_maximum_of_a_gaussian_band():
+    """A Gaussian band exp(-(s/σ)²) across the direction 50° on the case's mesh has the full
+    width at half maximum 2σ√(ln 2); the measure finds it to 2 % (bins a quarter of an
+    element wide, linear interpolation between them), whichever sense of the angle is given."""
+    from contfab.fem import mesh as meshes
+    from contfab.fem.assembly import Discretization
+    from contfab.scenes.biaxial_shear_band import band_width
+
+    disc = Discretization(meshes.delaunay_rectangle(1.0, 2.5, 1 / 24), "P2")
+    theta, sigma = math.radians(50.0), 0.08
+    s = (disc.points - [0.5, 1.25]) @ np.array([-math.sin(theta), math.cos(theta)])
+    exact = 2 * sigma * math.sqrt(math.log(2))
+    dgp = np.exp(-(s / sigma) ** 2)
+    assert band_width(disc, dgp, 50.0) == pytest.approx(exact, rel=0.02)
+    assert band_width(disc, dgp, 130.0) == pytest.approx(exact, rel=0.02)
+    assert math.isnan(band_width(disc, dgp, math.nan))
+
+
 def test_band_references_are_roscoe_arthur_coulomb_of_the_peak_state_never_the_angle(
         monkeypatch):
     """The band angle is printed against Roscoe 45 + ψ/2, Arthur 45 + (φ + ψ)/4 and Coulomb
@@ -164,7 +182,7 @@ def test_band_references_are_roscoe_arthur_coulomb_of_the_peak_state_never_the_a
 
     biax = load_case("biaxial_shear_band")
     run = {"peak": 3.0, "peak_strain": 0.01, "end": 2.5, "angle": 53.0, "phi0": 30.0,
-           "psi0": 10.0, "band_c_min": 0.8, "dofs": 1, "wall_s": 0.0, "steps": 1,
+           "psi0": 10.0, "band_c_min": 0.8, "band_width": 0.1, "h": 0.1, "dofs": 1, "wall_s": 0.0, "steps": 1,
            "median_newton": 1.0, "files": []}
     monkeypatch.setattr(biax, "solve", lambda *a, **k: run)
     args = build_parser(biax, "x").parse_args([])
@@ -193,6 +211,10 @@ def test_band_references_are_roscoe_arthur_coulomb_of_the_peak_state_never_the_a
     (["case", "retaining_wall", "--tier", "2", "--displacement", "2", "--out", "none"],
      "displacement = 2 H is outside the accepted range"),
     (["case", "biaxial_shear_band", "--dense", "0.5", "--out", "none"], "dense = 0.5"),
+    (["case", "biaxial_shear_band", "--internal-length", "0.1", "--nonlocal-weight", "0.5",
+      "--out", "none"], "nonlocal weight m = 0.5 is outside the accepted range [1, inf)"),
+    (["case", "biaxial_shear_band", "--internal-length", "0.9", "--out", "none"],
+     "internal length = 0.9 is outside the accepted range [0, 0.5]"),
     (["case", "simple_shear_reversal", "--dgamma", "0.5", "--out", "none"],
      "dgamma = 0.5 is outside the accepted range (0, 0.1]"),
     (["case", "no_such_case"], "unknown case 'no_such_case'"),
@@ -333,7 +355,7 @@ def test_a_failed_study_run_is_recorded_and_the_others_still_run(monkeypatch):
 
     biax = load_case("biaxial_shear_band")
     main_run = {"peak": 3.0, "peak_strain": 0.01, "end": 2.5, "angle": 50.0, "phi0": 30.0,
-                "psi0": 10.0, "band_c_min": 0.8, "dofs": 1, "wall_s": 0.0, "steps": 1,
+                "psi0": 10.0, "band_c_min": 0.8, "band_width": 0.1, "h": 0.1, "dofs": 1, "wall_s": 0.0, "steps": 1,
                 "median_newton": 1.0, "files": []}
 
     def fake_biax(params, element, level, dense, strain, out, progress, lam=None, **kw):

@@ -25,7 +25,13 @@ range (``in_roscoe_coulomb``).
 Softening without an internal length makes the post-peak branch mesh dependent (the
 band is as thin as the elements allow): ``--study`` runs mesh levels 1..3 and λ, 10λ,
 and reports the post-peak stress ratio at the end of the push per mesh, and the peak
-change with λ (the rigid-plastic limit). A study run whose Newton fails is recorded in
+change with λ (the rigid-plastic limit). ``--internal-length ℓ`` (units of the
+specimen width W = 1) gives the softening a length: the nonlocal packing fraction of
+:mod:`contfab.fem.nonlocal_density`, c_eff = c + m (c̄ − c) with the Gaussian average c̄ over ℓ
+and ``--nonlocal-weight`` m (default 1.25, over-nonlocal); the band then has a width set by ℓ
+(``band_width``: the full width at half maximum of the plastic shear strain increment
+across the band, :func:`band_width`), and ``--study`` runs its levels with the same ℓ.
+A study run whose Newton fails is recorded in
 the notes (message, last converged strain and stress ratio, the peak so far) and the
 others still run; a failure of the main run is an error.
 """
@@ -49,6 +55,7 @@ from contfab.selection.auto_tier import Choice, params_for
 from contfab.fem.elements import ELEMENTS
 from contfab.fem.output import plot_field
 from contfab.fem.material import TierMaterial
+from contfab.fem.nonlocal_density import NonlocalMaterial
 from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver, Stage
 from contfab.material_point import run_path
 from contfab.params import ParamError, default_params, load_params
@@ -58,6 +65,8 @@ DESCRIPTION = "dense biaxial specimen, rough platens: peak, softening, shear-ban
 WIDTH, HEIGHT = 1.0, 2.5
 DEFAULT_DENSE = 0.03
 """c0 - c* of the default dense specimen."""
+DEFAULT_WEIGHT = 1.25
+"""m of the nonlocal packing fraction when --internal-length is given."""
 SPOT = (0.0, 0.3 * HEIGHT, 0.15 * WIDTH, 0.01)
 """Imperfection: centre x, y, radius, and how much lower its c is."""
 
@@ -83,12 +92,53 @@ def band_angle(disc: Discretization, dgp: np.ndarray) -> float:
     return min(angle, 180.0 - angle)
 
 
+def band_width(disc: Discretization, dgp: np.ndarray, angle: float) -> float:
+    """Full width at half maximum of the band of plastic shear strain increment ``dgp``
+    (per quadrature point) across the band direction ``angle`` (degrees to the horizontal,
+    either sense: the one whose profile peaks higher).
+
+    The points are binned along the band normal in bins a quarter of the mean element size
+    wide; each bin holds the quadrature-weighted mean of ``dgp`` (the mean increment along
+    the line, so the specimen's shorter chords at the corners do not count less). The width
+    is the distance between the half-maximum crossings either side of the fullest bin
+    (linear interpolation between bin centres). NaN if ``angle`` is NaN.
+    """
+    if not math.isfinite(angle):
+        return math.nan
+    w = disc.weights.ravel()
+    step = 0.25 * math.sqrt(disc.area() / disc.ne)
+    best = (-1.0, math.nan)
+    for theta in (math.radians(angle), math.pi - math.radians(angle)):
+        s = disc.points @ np.array([-math.sin(theta), math.cos(theta)])
+        bins = np.floor((s - s.min()) / step).astype(np.int64)
+        area = np.bincount(bins, weights=w)
+        profile = np.bincount(bins, weights=w * dgp) / np.where(area > 0, area, 1.0)
+        k = int(np.argmax(profile))
+        half = 0.5 * profile[k]
+        lo = k
+        while lo > 0 and profile[lo - 1] > half:
+            lo -= 1
+        hi = k
+        while hi < len(profile) - 1 and profile[hi + 1] > half:
+            hi += 1
+        left = lo - (0.0 if lo == 0 else (profile[lo] - half) / (profile[lo] - profile[lo - 1]))
+        right = hi + (0.0 if hi == len(profile) - 1 else
+                      (profile[hi] - half) / (profile[hi] - profile[hi + 1]))
+        if profile[k] > best[0]:
+            best = (profile[k], (right - left) * step)
+    return best[1]
+
+
 def solve(params, element: str, level: int, dense: float, strain: float, out: Path | None,
-          progress: bool, lam: float | None = None, tier=1, homogeneous: bool = False) -> dict:
+          progress: bool, lam: float | None = None, tier=1, homogeneous: bool = False,
+          length: float = 0.0, weight: float = 1.0, dt_max: float = 0.02) -> dict:
     """One biaxial test with model ``tier`` (default 1; an array: a tier per quadrature
-    point); returns the peak, the end state, the band angle and Newton figures.
+    point); returns the peak, the end state, the band angle and width and Newton figures.
     ``homogeneous``: smooth platens and no imperfection (the field stays homogeneous: the
-    material point's biaxial path; no band, angle NaN)."""
+    material point's biaxial path; no band, angle NaN). ``length`` > 0: the nonlocal
+    packing fraction of :mod:`contfab.fem.nonlocal_density` with internal length ``length``
+    (specimen width 1) and weight ``weight`` (m); 0 the local model. ``dt_max``: the
+    largest step, a fraction of the push."""
     if not 1 <= level <= 6:
         raise ParamError(f"mesh level = {level} is outside the accepted range [1, 6]")
     low = -0.05 if homogeneous else 0.0       # a loose specimen hardens: no band to trigger
@@ -97,6 +147,13 @@ def solve(params, element: str, level: int, dense: float, strain: float, out: Pa
                          f"({low:g}, 0.08]")
     if not 0.0 < strain <= 0.2:
         raise ParamError(f"strain = {strain:g} is outside the accepted range (0, 0.2]")
+    if not (math.isfinite(length) and 0.0 <= length <= 0.5 * WIDTH):
+        raise ParamError(f"internal length = {length:g} is outside the accepted range "
+                         f"[0, {0.5 * WIDTH:g}] (0: local; units of the specimen width)")
+    if not (math.isfinite(weight) and weight >= 1.0):
+        raise ParamError(f"nonlocal weight m = {weight:g} is outside the accepted range [1, inf)")
+    if not 0.0 < dt_max <= 0.2:
+        raise ParamError(f"dt_max = {dt_max:g} is outside the accepted range (0, 0.2]")
     p0 = 1.0
     c_star = params.tier1.c_star
     mixed = np.ndim(tier) > 0
@@ -115,6 +172,8 @@ def solve(params, element: str, level: int, dense: float, strain: float, out: Pa
                              np.linspace(0, HEIGHT, 20 * level + 1), kind="quad")
     disc = Discretization(mesh, element)
     material = TierMaterial(params, point_tiers=tier) if mixed else TierMaterial(params, tier=tier)
+    if length > 0.0:
+        material = NonlocalMaterial(material, disc, length, weight)
     n = disc.npoints
     state0 = material.initial_state(n)
     x, y = disc.points.T
@@ -133,7 +192,7 @@ def solve(params, element: str, level: int, dense: float, strain: float, out: Pa
     f_dead = loads.surface_load(disc, "left", pressure=p0) + \
         loads.surface_load(disc, "right", pressure=p0)
     stage = Stage("compress", fixed, np.where(np.isin(fixed, top), -strain * HEIGHT, 0.0),
-                  f_dead, dt0=0.01, dt_max=0.02, dt_min=1e-5)
+                  f_dead, dt0=min(0.01, dt_max), dt_max=dt_max, dt_min=1e-5)
 
     def measure(s: Solver) -> dict:
         sigma1 = -s.reactions(top) / WIDTH
@@ -142,7 +201,8 @@ def solve(params, element: str, level: int, dense: float, strain: float, out: Pa
                 "sin_phi_mob": (sigma1 - p0) / (sigma1 + p0)}
 
     name = f"biaxial_shear_band_{element}_L{level}" + (
-        "_mixed" if mixed else "" if tier == 1 else f"_tier{tier}")
+        "_mixed" if mixed else "" if tier == 1 else f"_tier{tier}") + (
+        f"_nl{length:g}_m{weight:g}" if length > 0 else "")
     outputs = analysis.Outputs(out, name, frame_every=10, curve_axes=("axial_strain", "stress_ratio"))
     gp_marks = []
     t0 = time.perf_counter()
@@ -160,10 +220,12 @@ def solve(params, element: str, level: int, dense: float, strain: float, out: Pa
     ratio = result.column("stress_ratio")
     t = result.column("t")
     gp = [g for tt, g in gp_marks if tt >= 0.9 * t[-1]]
-    dgp = disc.element_mean(solver.committed.state[:, 0] - gp[0])
+    dgp_points = solver.committed.state[:, 0] - gp[0]
+    angle = math.nan if homogeneous else band_angle(disc, disc.element_mean(dgp_points))
     c_col = material.state_names.index("c") if "c" in material.state_names else None
     return {"peak": float(ratio.max()), "peak_strain": float(result.column("axial_strain")[np.argmax(ratio)]),
-            "end": float(ratio[-1]), "angle": math.nan if homogeneous else band_angle(disc, dgp),
+            "end": float(ratio[-1]), "angle": angle,
+            "band_width": band_width(disc, dgp_points, angle), "h": h,
             "curve": {k: result.column(k) for k in ("axial_strain", "stress_ratio", "sin_phi_mob")},
             "params": params,
             "phi0": phi0, "psi0": psi0, "dofs": disc.ndofs,
@@ -199,6 +261,14 @@ def add_arguments(p) -> None:
                         "model) and at tier 1, and report the differences and the saving")
     p.add_argument("--study", action="store_true",
                    help="also mesh levels 1..3 (post-peak mesh dependence) and 10 lambda")
+    p.add_argument("--internal-length", type=float, default=0.0,
+                   help="internal length l of the nonlocal packing fraction, in units of the "
+                        "specimen width (contfab.fem.nonlocal_density; default 0: local)")
+    p.add_argument("--nonlocal-weight", type=float, default=DEFAULT_WEIGHT,
+                   help=f"m of c_eff = c + m (c_avg - c), >= 1 (default {DEFAULT_WEIGHT:g}: "
+                        "over-nonlocal; 1: plain nonlocal)")
+    p.add_argument("--dt-max", type=float, default=0.02,
+                   help="largest step as a fraction of the push (default 0.02)")
 
 
 def _homogeneous_result(r: dict, auto: dict | None, args) -> CaseResult:
@@ -225,7 +295,7 @@ def compare_uniform(r: dict, auto: dict, params, args) -> dict:
     auto run's strain grid, peak and end σ1/σ3, wall time and point updates."""
     p2 = params_for(params, Choice(**auto["reversal"]))
     runs = {t: solve(p2, args.element, args.level, args.dense, args.strain, None, False, tier=t,
-                     homogeneous=args.homogeneous) for t in (2, 1)}
+                     homogeneous=args.homogeneous, **nonlocal_options(args)) for t in (2, 1)}
     ref = runs[2]["curve"]
 
     def diff(run: dict) -> np.ndarray:
@@ -245,8 +315,15 @@ def compare_uniform(r: dict, auto: dict, params, args) -> dict:
     return out
 
 
-STUDY_KEYS = ("dofs", "peak", "peak_strain", "end", "angle", "steps", "median_newton", "wall_s")
+STUDY_KEYS = ("dofs", "h", "peak", "peak_strain", "end", "angle", "band_width", "steps",
+              "median_newton", "wall_s")
 """What ``--study`` records of each of its runs."""
+
+
+def nonlocal_options(args) -> dict:
+    """The internal length, nonlocal weight and largest step of ``args`` for :func:`solve`."""
+    return {"length": args.internal_length, "weight": args.nonlocal_weight,
+            "dt_max": args.dt_max}
 
 
 def run(args) -> CaseResult:
@@ -266,11 +343,13 @@ def run(args) -> CaseResult:
     if args.tier == "auto":
         r, auto = run_auto(lambda p, t: solve(p, args.element, args.level, args.dense,
                                               args.strain, args.out, not args.quiet, tier=t,
-                                              homogeneous=args.homogeneous),
+                                              homogeneous=args.homogeneous,
+                                              **nonlocal_options(args)),
                            params, args.tolerance, min_tier=1)
     else:
         r = solve(params, args.element, args.level, args.dense, args.strain, args.out,
-                  not args.quiet, tier=int(args.tier), homogeneous=args.homogeneous)
+                  not args.quiet, tier=int(args.tier), homogeneous=args.homogeneous,
+                  **nonlocal_options(args))
     if args.homogeneous:
         return _homogeneous_result(r, auto, args)
     coulomb = 45 + r["phi0"] / 2
@@ -283,7 +362,9 @@ def run(args) -> CaseResult:
                Figure("band angle vs Coulomb [deg]", r["angle"], coulomb,
                       "Coulomb (1773): 45 + phi/2")]
     notes = {k: r[k] for k in ("peak", "peak_strain", "end", "phi0", "psi0", "band_c_min",
-                               "dofs", "wall_s", "steps", "median_newton")}
+                               "band_width", "h", "dofs", "wall_s", "steps", "median_newton")}
+    notes["internal_length"] = args.internal_length
+    notes["nonlocal_weight"] = args.nonlocal_weight if args.internal_length > 0 else None
     notes["in_roscoe_coulomb"] = roscoe <= r["angle"] <= coulomb
     notes["softening"] = r["end"] / r["peak"] - 1.0
     if auto is not None:
@@ -295,7 +376,7 @@ def run(args) -> CaseResult:
         t0 = time.perf_counter()
         try:
             stiff = solve(params, args.element, args.level, args.dense, args.strain, None,
-                          False, lam=10 * lam)
+                          False, lam=10 * lam, **nonlocal_options(args))
             notes["peak_change_10x_lambda"] = stiff["peak"] / r["peak"] - 1.0
             notes["lambda_10x"] = {k: stiff[k] for k in STUDY_KEYS}
         except ConvergenceError as exc:
@@ -305,7 +386,8 @@ def run(args) -> CaseResult:
             t0 = time.perf_counter()
             try:
                 m = r if level == args.level else solve(params, args.element, level, args.dense,
-                                                        args.strain, None, False)
+                                                        args.strain, None, False,
+                                                        **nonlocal_options(args))
                 notes[f"level{level}"] = {k: m[k] for k in STUDY_KEYS}
             except ConvergenceError as exc:
                 notes[f"level{level}"] = failure_note(exc, "stress_ratio", "axial_strain")

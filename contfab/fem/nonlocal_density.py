@@ -1,0 +1,126 @@
+"""Nonlocal packing fraction: an internal length for the softening of tiers >= 1.
+
+Tiers 1 and 2 soften through the packing fraction c (state column ``c``): a dense point
+dilates, c falls toward c*, and φ(c), ψ(c) fall with it (docs/theory.md §5). Without a
+length in the model a band of softening points is as thin as the elements. Here the
+strength and dilatancy of a point follow an effective packing fraction that mixes its own
+c with a weighted average over a neighbourhood of size ℓ (docs/theory.md §13):
+
+    c_eff,p = c_p + δ_e(p),      δ_e = m (c̄_e − c_e)
+    c_e     = Σ_{q in e} w_q c_q / Σ_{q in e} w_q                (element mean, w_q the
+                                                                   quadrature weights)
+    c̄_e     = Σ_f a_f g(r_ef) c_f / Σ_f a_f g(r_ef),   g(r) = exp(−(r/ℓ)²)
+
+with r_ef the distance between the centroids of elements e and f, a_f the area of f, and
+the sum over the elements within ``cutoff``·ℓ (default 3ℓ: g(3ℓ) = 1.2e-4). m = 1 is the
+plain nonlocal model (c_eff = c̄ up to the point's deviation from its element mean);
+m > 1 is the over-nonlocal variant of Vermeer & Brinkgreve (1994), whose local part
+c (1 − m) is negative: it keeps the softening from concentrating into a band thinner than
+ℓ, which the plain average allows (Brinkgreve 1994; Jirásek & Rolshoven 2003).
+
+Convention. ℓ is in the mesh's length unit; g is the Gaussian of the nonlocal
+literature written with ℓ (not ℓ/√2 or ℓ/2): its second moment in 2D is ℓ²/2 per
+direction. The average is evaluated on element means (an element-by-element operator,
+ne × ne, small even where a point-by-point one would hold 10⁷ entries); within an element
+each point keeps its own deviation from the mean. Properties: the rows of the operator sum
+to 1, so a constant field has δ = 0 exactly; on a regular lattice of centroids a linear
+field is reproduced in the interior (more than ``cutoff``·ℓ from a side) to the Gaussian's
+truncation, so δ = 0 there too; near a side the operator averages over the part of the
+neighbourhood inside the body (normalized by the weights present). As ℓ → 0 every
+element sees only itself and δ = 0 exactly: the local model.
+
+Time integration (staggered, explicit in the average): δ is computed from the state at
+the start of the step (the committed state the solver passes to every update of a step)
+and held fixed during the step's Newton iterations; the wrapped material's update runs on
+the state with c shifted by δ, and the shift is taken back from the updated state. The
+Newton matrix is the local material's consistent tangent at fixed δ (exact for the step's
+problem); the price is a lag of one step in the average, an error of first order in the
+step size, and a step problem that is the local softening one: inside a step a point's own
+dilation softens it at the full local rate, while the converged over-nonlocal model weighs
+it by 1 − m(1 − A_ee) < 0. Where the plastic zone is ℓ wide its points then flip between
+elastic unloading and plastic loading from one iteration to the next, and Newton needs many
+iterations and small steps (measured in docs/fem_validation.md §3).
+
+References: Pijaudier-Cabot & Bažant (1987) J. Eng. Mech. 113(10), 1512–1533 (nonlocal
+damage); Vermeer & Brinkgreve (1994) "A new effective non-local strain measure for
+softening plasticity", in Localisation and Bifurcation Theory for Soils and Rocks,
+Balkema, 89–100; Brinkgreve (1994) Geomaterial models and numerical analysis of softening,
+PhD thesis, TU Delft; Jirásek & Rolshoven (2003) Int. J. Eng. Sci. 41, 1553–1602.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.spatial import cKDTree
+
+from contfab.params import ParamError
+
+
+def averaging_matrix(centroids: np.ndarray, areas: np.ndarray, length: float,
+                     cutoff: float = 3.0) -> sp.csr_matrix:
+    """The (ne, ne) operator c̄ = A c of the module doc: A_ef ∝ a_f exp(−(r_ef/ℓ)²) for
+    r_ef <= cutoff·ℓ, rows normalized to 1."""
+    if not (np.isfinite(length) and length > 0.0):
+        raise ParamError(f"internal length = {length!r} is outside the accepted range (0, inf)")
+    if not (np.isfinite(cutoff) and cutoff >= 1.0):
+        raise ParamError(f"cutoff = {cutoff!r} is outside the accepted range [1, inf) "
+                         "(in internal lengths)")
+    tree = cKDTree(centroids)
+    pairs = tree.sparse_distance_matrix(tree, cutoff * length, output_type="ndarray")
+    i, j, r = pairs["i"], pairs["j"], pairs["v"]
+    diag = np.arange(len(centroids))             # a zero distance may be left out: add self
+    i, j, r = np.concatenate([i[i != j], diag]), np.concatenate([j[i != j], diag]), \
+        np.concatenate([r[i != j], np.zeros(len(diag))])
+    w = areas[j] * np.exp(-(r / length) ** 2)
+    a = sp.csr_matrix((w, (i, j)), shape=(len(centroids),) * 2)
+    a.data /= np.repeat(np.asarray(a.sum(axis=1)).ravel(), np.diff(a.indptr))
+    return a
+
+
+class NonlocalMaterial:
+    """``material`` (any tier with a ``c`` state column) with the nonlocal packing fraction
+    of the module doc, over the quadrature points of ``disc``: internal length ``length``
+    (mesh units, > 0), weight ``m`` (>= 1; 1 plain, > 1 over-nonlocal)."""
+
+    def __init__(self, material, disc, length: float, m: float = 1.0, cutoff: float = 3.0):
+        if "c" not in material.state_names:
+            raise ParamError(f"a nonlocal packing fraction needs a state column 'c'; the "
+                             f"material carries {material.state_names} (tier 0 has none: "
+                             "use tier 1 or 2)")
+        if not (np.isfinite(m) and m >= 1.0):
+            raise ParamError(f"nonlocal weight m = {m!r} is outside the accepted range [1, inf)")
+        self.material = material
+        self.state_names = material.state_names
+        self.length, self.m = float(length), float(m)
+        self._col = material.state_names.index("c")
+        self._disc = disc
+        centroids = disc.mesh.p[:, disc.mesh.t].mean(axis=1).T
+        self.matrix = averaging_matrix(centroids, disc.weights.sum(axis=1), length, cutoff)
+
+    @property
+    def params(self):
+        return self.material.params
+
+    @property
+    def point_updates(self) -> dict:
+        return self.material.point_updates
+
+    def initial_state(self, n: int) -> np.ndarray:
+        return self.material.initial_state(n)
+
+    def offset(self, state: np.ndarray) -> np.ndarray:
+        """δ per point (npoints,) of the state ``state``: m (c̄_e − c_e) of its element."""
+        c_e = self._disc.element_mean(np.asarray(state)[:, self._col])
+        return np.repeat(self.m * (self.matrix @ c_e - c_e), self._disc.nq)
+
+    def update(self, stress_n, state_n, dstrain, dspin):
+        """The wrapped update at c_n + δ (δ of ``state_n``, the step's start), δ taken back."""
+        delta = self.offset(state_n)
+        shifted = np.array(state_n, dtype=np.float64)
+        shifted[:, self._col] += delta
+        res = self.material.update(stress_n, shifted, dstrain, dspin)
+        res.state[:, self._col] -= delta
+        return res
+
+    def spin_tangent(self, stress_n, state_n, dstrain, dspin, res) -> np.ndarray:
+        return self.material.spin_tangent(stress_n, state_n, dstrain, dspin, res)
