@@ -201,6 +201,8 @@ def test_band_references_are_roscoe_arthur_coulomb_of_the_peak_state_never_the_a
      "settlement = 2 B is outside the accepted range"),
     (["case", "strip_footing", "--element", "P2", "--relaxation-time", "-1", "--out", "none"],
      "relaxation_time = -1.0 is outside the accepted range"),
+    (["case", "strip_footing", "--tol-stall", "2", "--out", "none"],
+     "need 0 < tol <= tol_stall < 1, got tol = 1e-08, tol_stall = 2.0"),
     (["case", "retaining_wall", "--phi", "95", "--out", "none"], "phi_deg = 95 is outside"),
     (["case", "strip_footing", "--c0", "dense-ish", "--out", "none"],
      "c0 = 'dense-ish' is not a packing fraction"),

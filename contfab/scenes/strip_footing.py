@@ -157,7 +157,7 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
           out: Path | None, progress: bool, push: float = 15.0,
           apex_stiffness: float = 1e-9, dt_max: float = 0.05,
           settlement: float | None = None, relaxation_time: float | None = None,
-          tier=0) -> dict:
+          tier=0, tol_stall: float = NewtonOptions.tol_stall) -> dict:
     """One footing analysis; returns the factor, its curve summary, Newton figures, files.
 
     ``tier`` 0 runs the constant angles ``phi_deg``, ``psi_deg``; a tier >= 1 (or an array:
@@ -169,7 +169,8 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
     step, as a fraction of the push (``contfab tradeoff fem_footing_nq`` measures its
     effect). ``relaxation_time`` τ makes the material Duvaut–Lions viscoplastic
     (:mod:`contfab.fem.viscous`), τ in units of the settlement over B (the push runs at unit
-    settlement rate).
+    settlement rate). ``tol_stall`` is the Newton stall tolerance
+    (:class:`~contfab.fem.solver.NewtonOptions`).
     """
     if settlement is not None and not 0.0 < settlement <= 1.0:
         raise ParamError(f"settlement = {settlement:g} B is outside the accepted range (0, 1]")
@@ -203,7 +204,7 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
         norm = gamma * B_HALF**2                # N_γ = q_u / (½ γ B) = Q / (γ b²)
     reference = reference_factor(factor, phi_deg) if top == 0 else math.nan
     solver = Solver(disc, material, stress0, material.initial_state(n),
-                    NewtonOptions(relaxation_time=relaxation_time))
+                    NewtonOptions(relaxation_time=relaxation_time, tol_stall=tol_stall))
     dofs = {f"{s}_{c}": loads.boundary_dofs(disc, s, c)
             for s, c in (("left", "x"), ("right", "x"), ("bottom", "x"), ("bottom", "y"),
                          ("footing", "x"), ("footing", "y"))}
@@ -277,6 +278,9 @@ def add_arguments(p) -> None:
     p.add_argument("--relaxation-time", type=float, default=None,
                    help="Duvaut-Lions viscoplastic material with this relaxation time, in "
                         "units of settlement over B (default: rate-independent)")
+    p.add_argument("--tol-stall", type=float, default=NewtonOptions.tol_stall,
+                   help="accept a Newton step whose relative residual stops falling at or "
+                        f"below this (default {NewtonOptions.tol_stall:g}; range [1e-8, 1))")
     p.add_argument("--no-check", action="store_true",
                    help="tiers >= 1: skip the tier-0 check against Prandtl-Reissner at phi*")
 
@@ -298,7 +302,7 @@ def run(args) -> CaseResult:
         args.tier = "0" if args.phi is not None or args.psi is not None else "1"
     if args.settlement is not None and not 0.0 < args.settlement <= 1.0:
         raise ParamError(f"settlement = {args.settlement:g} B is outside the accepted range (0, 1]")
-    NewtonOptions(relaxation_time=args.relaxation_time)     # its range, before any run
+    NewtonOptions(relaxation_time=args.relaxation_time, tol_stall=args.tol_stall)  # ranges
     for level in args.level:
         check_level(level)
     tier = material_options.tier_arg(args.tier)
@@ -340,7 +344,8 @@ def run_tier0(args, params) -> CaseResult:
                         r = solve(phi, psi, args.factor, element, level, params, args.out,
                                   not args.quiet, apex_stiffness=args.apex_stiffness,
                                   settlement=args.settlement,
-                                  relaxation_time=args.relaxation_time)
+                                  relaxation_time=args.relaxation_time,
+                                  tol_stall=args.tol_stall)
                     except ConvergenceError as exc:
                         if headline:
                             raise
@@ -440,7 +445,7 @@ def run_calibrated(args, params, tier) -> CaseResult:
         return solve(bounds["phi0"], bounds["psi0"], args.factor, element, level, run_params,
                      args.out, not args.quiet, apex_stiffness=args.apex_stiffness,
                      settlement=settlement, relaxation_time=args.relaxation_time,
-                     tier=point_tiers)
+                     tier=point_tiers, tol_stall=args.tol_stall)
 
     if tier == "auto":
         r, auto = run_auto(one, params, args.tolerance, min_tier=1)
