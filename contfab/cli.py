@@ -176,6 +176,10 @@ def _add_verify(p: argparse.ArgumentParser) -> None:
     lmp.add_argument("--shear", type=float, default=1.0,
                      help="shear_reversal: amplitude a, gamma 0 -> a -> -a (default 1, the "
                           "standard path; accepted (0, 1])")
+    lmp.add_argument("--remap", choices=("v", "x"), default="v",
+                     help="shear_reversal: LAMMPS's discs follow the shear by Lees-Edwards "
+                          "boundaries with whole velocities (v, default) or by affine "
+                          "remapping with fluctuation velocities (x)")
     lmp.add_argument("--rows", type=int, default=150, help="measured rows per run (default 150)")
     lmp.add_argument("--inertial", type=float, default=1e-3, help="inertial number (default 1e-3)")
     lmp.add_argument("--gamma-t", choices=("half", "zero"), default="half",
@@ -191,7 +195,7 @@ def _run_verify(args) -> int:
         res = compare(args.out, n=args.n, seeds=tuple(args.seeds), kinds=tuple(args.kinds),
                       kappa=args.kappa, strain=args.strain, rows=args.rows,
                       inertial=args.inertial, gamma_t=args.gamma_t, path=args.path,
-                      shear=args.shear,
+                      shear=args.shear, remap=args.remap,
                       progress=lambda kind, seed: print(f"  {kind} seed {seed}: done",
                                                         flush=True))
     except LammpsUnavailable as exc:

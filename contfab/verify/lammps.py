@@ -12,7 +12,10 @@ e = 0.55, κ as given; dense: μ_prep = 0, loose: :data:`dem.job.LOOSE`); its ta
 * ``shear_reversal``: the DEM's standard path ``simple_shear_reversal`` (L_xy = +I to the
   shear strain γ = a, then L_xy = -I to γ = -a, σyy held at -P0, L_xx = L_yx = 0) with
   its lengths, output intervals and stops scaled from a = 1 to the amplitude
-  a = ``shear``. LAMMPS reverses at the DEM's reversal step.
+  a = ``shear``. LAMMPS reverses at the DEM's reversal step; ``remap`` chooses how its
+  discs follow the cell (:class:`contfab.verify.lammps_engine.LammpsShear`: ``v``, whole
+  velocities with Lees-Edwards boundaries, or ``x``, affine remapping and fluctuation
+  velocities).
 
 Both are measured at the same steps by the same code
 (:func:`contfab.verify.contacts.contact_measures`: contact stress, R/P, τ/σn = σxy/-σyy,
@@ -125,12 +128,14 @@ def dem_curve(state, dyn, kind, seed, path) -> list[dict]:
     return out
 
 
-def lammps_curve(state, dyn, kind, seed, dem_rows, path_name, gamma_t) -> list[dict]:
+def lammps_curve(state, dyn, kind, seed, dem_rows, path_name, gamma_t, remap="v") -> list[dict]:
     """LAMMPS's rows at the DEM's output steps; in shear it reverses where the DEM did
-    (the step of the DEM's last row of the first stage)."""
+    (the step of the DEM's last row of the first stage), its discs remapped by ``remap``."""
     steps = [r["step"] for r in dem_rows]
-    engine = LammpsShear if path_name == "shear_reversal" else LammpsBiaxial
-    eng = engine(state, dyn, dyn.gdot_ref, max(steps), gamma_t)
+    if path_name == "shear_reversal":
+        eng = LammpsShear(state, dyn, dyn.gdot_ref, max(steps), gamma_t, remap)
+    else:
+        eng = LammpsBiaxial(state, dyn, dyn.gdot_ref, max(steps), gamma_t)
     try:
         out, stage = [], 0
         for r in dem_rows:
@@ -255,7 +260,7 @@ def overlay_plot(curves: list[dict], path_name: str, file) -> None:
 def compare(out, n: int = 1000, seeds=(1, 2, 3), kinds=("dense", "loose"), kappa: float = 1e3,
             strain: float = 0.3, rows: int = 150, inertial: float = 1e-3,
             gamma_t: str = "half", loose: dict | None = None, path: str = "biaxial",
-            shear: float = MAX_SHEAR, progress=None) -> dict:
+            shear: float = MAX_SHEAR, remap: str = "v", progress=None) -> dict:
     """Run the comparison (module doc); returns {what: file written} and the table."""
     from contfab.bench.dem_lammps import lammps_class
     from dem.job import LOOSE
@@ -272,7 +277,7 @@ def compare(out, n: int = 1000, seeds=(1, 2, 3), kinds=("dense", "loose"), kappa
         for seed in seeds:
             state, dyn = sample(kind, seed, n, kappa, inertial, loose)
             ours = dem_curve(state.copy(), dyn, kind, seed, loading)
-            theirs = lammps_curve(state, dyn, kind, seed, ours, path, gamma_t)
+            theirs = lammps_curve(state, dyn, kind, seed, ours, path, gamma_t, remap)
             for eng, rr in (("dem", ours), ("lammps", theirs)):
                 summaries.append({"engine": eng, "kind": kind, "seed": seed, **summary(rr)})
             curves += ours + theirs
@@ -287,7 +292,8 @@ def compare(out, n: int = 1000, seeds=(1, 2, 3), kinds=("dense", "loose"), kappa
                               for s in summaries]),
         "table": write_json(out / "table.json", {
             "settings": {"n": n, "seeds": list(seeds), "kinds": list(kinds), "kappa": kappa,
-                         "path": path, **({"shear": shear, "steady_from": STEADY_FROM,
+                         "path": path, **({"shear": shear, "remap": remap,
+                                           "steady_from": STEADY_FROM,
                                            "recovery_fraction": RECOVERY_FRACTION}
                                           if path == "shear_reversal" else
                                           {"strain": strain, "residual_window": RESIDUAL_WINDOW}),

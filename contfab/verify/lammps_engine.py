@@ -25,7 +25,10 @@ velocity jump L_xy Ly, and ghost discs across it carry it, ``comm_modify vel yes
 remapped with the cell: their velocities are whole ones, the DEM's fluctuation velocity
 plus the streaming profile L_xy (y - y_c) (y_c the box centre), set so at the start and
 flipped at a reversal of L_xy. LAMMPS's contact law thus sees the affine part L·l of the
-relative velocity in shear. Measurements use the Gauss-reduced cell
+relative velocity in shear. With ``remap = "x"`` instead the discs are remapped with the
+cell every step (``remap x``, as in the biaxial runs) and their velocities are the
+fluctuation ones: the contact law then misses L·l, as it does in LAMMPS's biaxial runs.
+Measurements use the Gauss-reduced cell
 (:func:`dem.periodic_cell.reduce_cell`), the same lattice.
 
 Contacts come from ``compute pair/local`` (the normal force on the first atom,
@@ -53,6 +56,7 @@ def pair_style(law, gamma_n: float, gamma_t: str) -> str:
             f"{law.mu!r} {damp} limit_damping")
 
 
+REMAPS = ("v", "x")
 SHEAR_CHUNK = 100
 """Steps between resets of the tilt velocity L_xy Ly of the simple-shear runs."""
 
@@ -144,16 +148,21 @@ class LammpsBiaxial(LammpsSample):
 
 
 class LammpsShear(LammpsSample):
-    """Simple shear at σyy = -P0, L_xy = ±``rate`` (module doc); :meth:`reverse`
-    flips the sign of L_xy."""
+    """Simple shear at σyy = -P0, L_xy = ±``rate``, discs remapped by ``remap`` (module
+    doc); :meth:`reverse` flips the sign of L_xy."""
 
-    def __init__(self, state, dyn, rate: float, total_steps: int, gamma_t: str = "half"):
+    def __init__(self, state, dyn, rate: float, total_steps: int, gamma_t: str = "half",
+                 remap: str = "v"):
+        if remap not in REMAPS:
+            raise ValueError(f"remap {remap!r} unknown; accepted {REMAPS}")
+        self.streaming = remap == "v"
         shifted = state.copy()
-        x = state.s @ state.h.T
-        shifted.v[:, 0] += rate * (x[:, 1] - 0.5 * state.h[1, 1])
+        if self.streaming:
+            x = state.s @ state.h.T
+            shifted.v[:, 0] += rate * (x[:, 1] - 0.5 * state.h[1, 1])
         super().__init__(shifted, dyn, total_steps, gamma_t, [
             f"fix integrate all nph/sphere y 1.0 1.0 {PDAMP_STEPS * dyn.dt!r} ptemp 1.0 disc",
-            "fix shear all deform 1 xy variable v_tilt v_tiltrate remap v flip yes"],
+            f"fix shear all deform 1 xy variable v_tilt v_tiltrate remap {remap} flip yes"],
             before=("variable d0 internal 0.0", "variable s0 internal 0",
                     "variable vel internal 0.0",
                     f"variable tilt equal v_d0+v_vel*(step-v_s0)*{dyn.dt!r}",
@@ -178,8 +187,9 @@ class LammpsShear(LammpsSample):
 
     def reverse(self) -> None:
         """L_xy -> -L_xy: the tilt velocity and the discs' streaming profile flip."""
-        x = self.lmp.numpy.extract_atom("x")[:self.n]
-        v = self.lmp.numpy.extract_atom("v")[:self.n]
-        lo, hi = self.lmp.extract_box()[:2]
-        v[:, 0] -= 2.0 * self.rate * (x[:, 1] - 0.5 * (lo[1] + hi[1]))
+        if self.streaming:
+            x = self.lmp.numpy.extract_atom("x")[:self.n]
+            v = self.lmp.numpy.extract_atom("v")[:self.n]
+            lo, hi = self.lmp.extract_box()[:2]
+            v[:, 0] -= 2.0 * self.rate * (x[:, 1] - 0.5 * (lo[1] + hi[1]))
         self.rate = -self.rate
