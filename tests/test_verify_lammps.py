@@ -59,7 +59,7 @@ def test_shear_reversal_starts_alike_imposes_the_same_shear_and_holds_sigma_yy(t
     a = 0.004
     res = compare(tmp_path, n=120, seeds=(1,), kinds=("dense",), rows=9, path="shear_reversal",
                   shear=a)
-    rows = [r for r in _csv_rows(tmp_path / "curves.csv")]
+    rows = _csv_rows(tmp_path / "curves.csv")
     dem = [r for r in rows if r["engine"] == "dem"]
     lmp = [r for r in rows if r["engine"] == "lammps"]
     assert [r["step"] for r in dem] == [r["step"] for r in lmp] and len(dem) >= 9
