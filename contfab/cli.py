@@ -78,6 +78,12 @@ def _dem_settings_args(p: argparse.ArgumentParser) -> None:
                    help="when --mu-prep is above --mu: steps between the velocity resets of the "
                         "collapse that lowering the friction starts (default 10, looser; 0: the "
                         "collapse runs with inertia)")
+    p.add_argument("--target-c0", type=float,
+                   help="largest accepted initial packing fraction: the seed's realizations "
+                        "are prepared in turn until one ends at c0 <= this (default: the "
+                        "first realization, any c0)")
+    p.add_argument("--target-tries", type=int,
+                   help="realizations tried for --target-c0 before giving up (default 8)")
     p.add_argument("--kappa", type=float, help="stiffness number kn/P0 (default 1e4)")
     p.add_argument("--inertial", type=float,
                    help="inertial number I setting the reference strain rate (default 1e-3)")
@@ -98,7 +104,7 @@ def _dem_settings_args(p: argparse.ArgumentParser) -> None:
 
 
 DEM_SETTINGS = ("n", "seed", "radii", "kappa", "mu", "mu_prep", "prep_rate", "prep_quench",
-                "inertial", "e", "kt_ratio", "mu_roll", "dt_fraction", "prep_max_steps", "allow_unrelaxed",
+                "inertial", "e", "kt_ratio", "mu_roll", "dt_fraction", "prep_max_steps", "allow_unrelaxed", "target_c0", "target_tries",
                 "checkpoint_every")
 
 

@@ -81,6 +81,7 @@ class PrepInfo:
     unbalanced: float = math.inf
     kinetic_ratio: float = math.inf
     c_compressed: float | None = None       # c before a friction drop (μ_prep > μ)
+    realization: int = 0                    # which realization of the seed (dem.job)
 
     def to_dict(self) -> dict:
         return dict(self.__dict__)

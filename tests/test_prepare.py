@@ -37,3 +37,29 @@ def test_overlapping_explicit_configuration_is_refused():
     with pytest.raises(ParticleError, match=r"discs 0 and 1 overlap by 0.2"):
         check_configuration(np.full(3, 0.5), x, np.diag([6.0, 6.0]))
     check_configuration(np.full(3, 0.5), x + [[0, 0], [0.3, 0], [0, 0]], np.diag([6.0, 6.0]))
+
+
+def test_target_c0_takes_the_first_realization_at_or_below_it():
+    from dem.job import Settings, prepare_sample
+    from dem.prepare import PreparationError
+
+    base = dict(n=60, seed=3, kappa=1e3, inertial=1e-2)
+    _, _, first = prepare_sample(Settings(**base), progress=False)
+    _, _, same = prepare_sample(Settings(**base, target_c0=first.c), progress=False)
+    assert (same.realization, same.c) == (0, first.c)      # the seed's own sample meets it
+    _, _, looser = prepare_sample(Settings(**base, target_c0=first.c - 1e-6), progress=False)
+    assert looser.realization > 0 and looser.c <= first.c - 1e-6
+    _, _, again = prepare_sample(Settings(**base, target_c0=first.c - 1e-6), progress=False)
+    assert (again.realization, again.c) == (looser.realization, looser.c)   # reproducible
+    with pytest.raises(PreparationError, match="no realization of seed 3 reached c0 <= "
+                                               "target_c0 = 0.5 in target_tries = 2"):
+        prepare_sample(Settings(**base, target_c0=0.5, target_tries=2), progress=False)
+
+
+@pytest.mark.parametrize("bad, text", [({"target_c0": 0.95}, "target_c0 = 0.95 out of range"),
+                                       ({"target_tries": 0}, "target_tries = 0 out of range")])
+def test_bad_target_settings_are_refused(bad, text):
+    from dem.job import Settings
+
+    with pytest.raises(ValueError, match=text):
+        Settings(**bad).validate()
