@@ -190,15 +190,29 @@ def _add_verify(p: argparse.ArgumentParser) -> None:
     lmp.add_argument("--inertial", type=float, default=1e-3, help="inertial number (default 1e-3)")
     lmp.add_argument("--gamma-t", choices=("half", "zero"), default="half",
                      help="LAMMPS tangential dashpot: gamma_t = gamma_n/2 (default) or none")
+    lmp.add_argument("--loose-target-c0", type=float,
+                     help="loose samples: the seed's first realization with c0 <= this "
+                          "(dem prepare --target-c0; default: the first realization)")
+    lmp.add_argument("--prep-max-steps", type=int,
+                     help="loose samples: step limit of the preparation (default 2e6)")
 
 
 def _run_verify(args) -> int:
     from contfab.bench.dem_lammps import LammpsUnavailable
     from contfab.verify.lammps import check_settings, compare
 
+    from dem.job import LOOSE, Settings
+
     check_settings(args.n, args.seeds, args.strain, args.rows, args.path, args.shear)
+    loose = dict(LOOSE)
+    if args.loose_target_c0 is not None:
+        loose["target_c0"] = args.loose_target_c0
+    if args.prep_max_steps is not None:
+        loose["prep_max_steps"] = args.prep_max_steps
+    Settings(n=args.n, kappa=args.kappa, inertial=args.inertial, **loose).validate()
     try:
         res = compare(args.out, n=args.n, seeds=tuple(args.seeds), kinds=tuple(args.kinds),
+                      loose=loose,
                       kappa=args.kappa, strain=args.strain, rows=args.rows,
                       inertial=args.inertial, gamma_t=args.gamma_t, path=args.path,
                       shear=args.shear, remap=args.remap,

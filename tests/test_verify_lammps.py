@@ -97,6 +97,10 @@ def test_bad_settings_are_refused_before_anything_runs(tmp_path, capsys):
     assert main(["verify", "lammps", "--out", str(tmp_path / "v"), "--path", "shear_reversal",
                  "--shear", "0"]) == 2
     assert "shear amplitude = 0.0 out of range; accepted (0, 1]" in capsys.readouterr().err
+    assert main(["verify", "lammps", "--out", str(tmp_path / "v"), "--loose-target-c0", "0.95"]) == 2
+    assert "target_c0 = 0.95 out of range" in capsys.readouterr().err
+    assert main(["verify", "lammps", "--out", str(tmp_path / "v"), "--prep-max-steps", "10"]) == 2
+    assert "prep_max_steps = 10 out of range" in capsys.readouterr().err
     assert not (tmp_path / "v").exists()
 
 
