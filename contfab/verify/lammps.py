@@ -199,7 +199,8 @@ def summarize_shear(rows: list[dict]) -> dict:
 
 def seed_table(summaries: list[dict], quantities) -> dict:
     """Per kind: per engine mean and sd over the seeds where the figure is finite, the
-    difference and 2 se of it."""
+    difference and 2 se of it (NaN unless both engines have two finite seeds or more; a
+    figure a run does not reach, such as a recovery past its end, is NaN)."""
     table = {}
     for kind in sorted({s["kind"] for s in summaries}):
         t = {}
@@ -212,7 +213,8 @@ def seed_table(summaries: list[dict], quantities) -> dict:
                               "sd": float(v.std(ddof=1)) if v.size > 1 else math.nan,
                               "seeds": int(v.size)}
             d, l_ = stats["dem"], stats["lammps"]
-            two_se = 2.0 * math.sqrt(d["sd"] ** 2 / d["seeds"] + l_["sd"] ** 2 / l_["seeds"])
+            two_se = (2.0 * math.sqrt(d["sd"] ** 2 / d["seeds"] + l_["sd"] ** 2 / l_["seeds"])
+                      if d["seeds"] > 1 and l_["seeds"] > 1 else math.nan)
             diff = d["mean"] - l_["mean"]
             t[q] = {**stats, "dem_minus_lammps": diff, "two_se": two_se,
                     "within_scatter": bool(abs(diff) <= two_se) if math.isfinite(two_se) else None}
