@@ -2,7 +2,8 @@
 
 A checkpoint is a NumPy ``.npz`` archive holding every array of the
 :class:`dem.state.State` (positions, velocities, spins, forces, the cell, the whole pair
-list with its tangential histories, the servo integral, the accumulators), the
+list with its tangential histories, the servo integral, the accumulators) except the
+per-disc incidence index, which is derived from the pair list and rebuilt on load, the
 reference arrays of a :class:`dem.rve.PathRun`, and one JSON document (``meta``) with
 the scalars: step, pair count, RNG state, the dynamics (contact law, dt, skin, servo
 constants), the run's progress and history rows, and free-form settings.
@@ -23,11 +24,14 @@ import numpy as np
 from dem.contact_law import ContactLaw
 from dem.fileio import atomic_path
 from dem.integrator import Dynamics
+from dem.neighbours import incidence
 from dem.rve import PathRun
 from dem.state import State
 
 FORMAT = "contfab-dem-checkpoint-1"
 _RUN_ARRAYS = ("ref_su", "ref_h", "ref_acc")
+_DERIVED = ("inc_ptr", "inc")
+"""State arrays rebuilt from the pair list on load (:func:`dem.neighbours.incidence`)."""
 
 
 class CheckpointError(ValueError):
@@ -49,7 +53,7 @@ def dynamics_from(d: dict) -> Dynamics:
 def save(file: str | os.PathLike, state: State, dyn: Dynamics, run: PathRun | None = None,
          settings: dict | None = None) -> str:
     """Write the checkpoint atomically (temporary name, then rename); returns the path."""
-    arrays = {f"state/{k}": v for k, v in state.arrays().items()}
+    arrays = {f"state/{k}": v for k, v in state.arrays().items() if k not in _DERIVED}
     meta = {"format": FORMAT, "step": state.step, "n_pairs": state.n_pairs,
             "rebuilds": state.rebuilds, "rng_state": state.rng_state,
             "dynamics": dynamics_dict(dyn), "settings": settings or {}, "run": None}
@@ -73,7 +77,7 @@ def load(file: str | os.PathLike) -> tuple[State, Dynamics, PathRun | None, dict
             if meta.get("format") != FORMAT:
                 raise CheckpointError(f"{file}: not a DEM checkpoint (format {meta.get('format')!r})")
             kw = {f.name: z[f"state/{f.name}"].copy() for f in fields(State)
-                  if f"state/{f.name}" in z.files}
+                  if f"state/{f.name}" in z.files and f.name not in _DERIVED}
             run_arrays = {k: z[f"run/{k}"].copy() for k in _RUN_ARRAYS if f"run/{k}" in z.files}
     except (OSError, KeyError, ValueError) as exc:
         if isinstance(exc, CheckpointError):
@@ -85,6 +89,7 @@ def load(file: str | os.PathLike) -> tuple[State, Dynamics, PathRun | None, dict
         kin = np.array([mv[:, 0] @ kw["v"][:, 0], mv[:, 1] @ kw["v"][:, 1], mv[:, 0] @ kw["v"][:, 1]])
         kw["stress_contact"] = kw["stress"] + kin / vol
     kw.setdefault("stress_damping", np.zeros(3))  # written before the servo split it off
+    kw["inc_ptr"], kw["inc"] = incidence(kw["pair_ij"], meta["n_pairs"], kw["radius"].shape[0])
     state = State(**kw, n_pairs=meta["n_pairs"], step=meta["step"], rng_state=meta["rng_state"],
                   rebuilds=meta["rebuilds"])
     run = None

@@ -299,11 +299,10 @@ def disc_pass(pair_f, row_ptr, inc_ptr, inc, force, torque, v, omega, s, s_ref, 
                 fx = 0.0
                 fy = 0.0
                 t = 0.0
-                # the pairs in pair order: first those with p as j (i < p), listed in inc
-                # as -q-1, then those with p as i, rows row_ptr[p]..row_ptr[p+1] of the list
-                k1 = inc_ptr[p + 1] - (row_ptr[p + 1] - row_ptr[p])
-                for k in range(inc_ptr[p], k1):
-                    q = np.uint64(-inc[k] - 1)
+                # the pairs in pair order: first those with p as j (i < p), listed in inc,
+                # then those with p as i, rows row_ptr[p]..row_ptr[p+1] of the list
+                for k in range(inc_ptr[p], inc_ptr[p + 1]):
+                    q = np.uint64(inc[k])
                     fx -= pair_f[q, 0]
                     fy -= pair_f[q, 1]
                     t += pair_f[q, 3]

@@ -134,20 +134,22 @@ def build_pairs(s, radius, h, skin, n1, n2, old_ij, old_shift, old_hist, old_row
 
 @njit(cache=True)
 def incidence(pair_ij, n_pairs, n):
-    """(inc_ptr, inc): for each disc its pairs, ``q`` as i and ``-q-1`` as j, in pair order."""
+    """(inc_ptr, inc): for each disc the pairs ``q`` in which it is j, in pair order.
+
+    A disc's pairs as i are rows ``row_ptr[i]..row_ptr[i+1]`` of the list itself (sorted
+    by i); this index completes them, so a disc gathers its forces without scattered
+    writes. It is derived from the list alone (:func:`dem.checkpoint.load` rebuilds it).
+    """
     ptr = np.zeros(n + 1, np.int64)
     for q in range(n_pairs):
-        ptr[pair_ij[q, 0] + 1] += 1
         ptr[pair_ij[q, 1] + 1] += 1
     for i in range(n):
         ptr[i + 1] += ptr[i]
     fill = ptr[:n].copy()
-    inc = np.empty(max(2 * n_pairs, 1), np.int64)
+    inc = np.empty(max(n_pairs, 1), np.int64)
     for q in range(n_pairs):
-        i, j = pair_ij[q, 0], pair_ij[q, 1]
-        inc[fill[i]] = q
-        fill[i] += 1
-        inc[fill[j]] = -q - 1
+        j = pair_ij[q, 1]
+        inc[fill[j]] = q
         fill[j] += 1
     return ptr, inc
 

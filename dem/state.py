@@ -22,7 +22,7 @@ Pairs (capacity C, the first ``n_pairs`` valid, i < j, sorted by i, ``row_ptr`` 
     damping force and overlap of the last step (for the dissipation of the next one),
     pair_f (C, 4) (fx, fy on i; torque on i; torque on j).
 Incidence (for gathering forces per disc without scattered writes): inc_ptr (N+1),
-    inc (2C): pair q as ``q`` when the disc is its i, as ``-q-1`` when it is its j.
+    inc (C): the pairs q in which the disc is j (its pairs as i are its rows of the list).
 stress (3,) (sxx, syy, sxy) incl. the kinetic part, tension positive; stress_contact (3,)
     its contact part (1/V) Σ f⊗l, the stress the servo holds; stress_damping (3,) the
     normal dashpots' part of stress_contact (:mod:`dem.servo`); stiff (4,)
