@@ -137,11 +137,13 @@ def test_retaining_wall_fast_within_3_percent_of_rankine():
 
 
 def test_biaxial_band_angle_within_5_degrees_of_roscoe_coulomb_and_softening():
-    """The band angle lies within 5° of the Roscoe-Coulomb range [45° + ψ0/2, 45° + φ0/2]
-    (Vermeer 1990, "The orientation of shear bands in biaxial tests",
-    Géotechnique 40(2), 223-236), and the peak is the Mohr-Coulomb ratio of φ0:
+    """The band angle at onset lies within 5° of the Roscoe-Coulomb range of the peak state
+    [45° + ψ0/2, 45° + φ0/2] (Vermeer 1990, "The orientation of shear bands in biaxial
+    tests", Géotechnique 40(2), 223-236), and the peak is the Mohr-Coulomb ratio of φ0:
     σ1/σ3 = (1 + sin φ0)/(1 - sin φ0) to 2 %. φ0, ψ0 are tier 1's linear laws at the
-    case's default start c0 = c* + 0.03, evaluated here from the shipped parameters."""
+    case's default start c0 = c* + 0.03, evaluated here from the shipped parameters. The
+    onset window starts at the peak and closes before the end of the push (4 %), where
+    the end window (its last tenth) starts; the band's c then lies between c* and c0."""
     t1 = SHIPPED.tier1
     dc = 0.03                                     # the case's default --dense
     phi0 = min(max(t1.phi_star_deg + t1.dphi_dc_deg * dc, t1.phi_min_deg), t1.phi_max_deg)
@@ -153,6 +155,11 @@ def test_biaxial_band_angle_within_5_degrees_of_roscoe_coulomb_and_softening():
     assert result.notes["softening"] < -0.05          # the end load is > 5 % below the peak
     s = math.sin(math.radians(phi0))
     assert result.notes["peak"] == pytest.approx((1 + s) / (1 - s), rel=0.02)
+    onset, end = result.notes["band_onset"], result.notes["band_end"]
+    assert onset["window_strain"][0] == result.notes["peak_strain"]
+    assert onset["window_strain"][0] < onset["window_strain"][1] < end["window_strain"][0]
+    assert end["window_strain"][1] == pytest.approx(0.04, rel=1e-9)
+    assert t1.c_star - 1e-3 < end["band_c"] < onset["band_c"] < t1.c_star + dc
 
 
 def test_band_width_is_the_full_width_at_half_maximum_of_a_gaussian_band():
@@ -173,26 +180,108 @@ def test_band_width_is_the_full_width_at_half_maximum_of_a_gaussian_band():
     assert math.isnan(band_width(disc, dgp, math.nan))
 
 
+def _band(angle: float, band_c: float, phi: float, psi: float) -> dict:
+    """A band entry of the biaxial case's ``solve`` (angle, width, the band's c and its
+    angles), for runs faked without the solver."""
+    return {"angle": angle, "band_width": 0.1, "band_c": band_c, "window_strain": [0.01, 0.02],
+            "band_phi": phi, "band_psi": psi}
+
+
+def _fake_band_run(onset_angle: float, end_angle: float) -> dict:
+    """A faked ``solve`` result: peak state φ0 = 30°, ψ0 = 10°; the band's state at the
+    end φ = 16°, ψ = 2° (the band state at onset: φ = 28°, ψ = 8°)."""
+    return {"peak": 3.0, "peak_strain": 0.01, "end": 2.5, "angle": end_angle, "phi0": 30.0,
+            "psi0": 10.0, "band_c_min": 0.8, "band_width": 0.1, "h": 0.1, "dofs": 1,
+            "wall_s": 0.0, "steps": 1, "median_newton": 1.0, "files": [],
+            "onset_angle": onset_angle, "band_onset": _band(onset_angle, 0.84, 28.0, 8.0),
+            "band_end": _band(end_angle, 0.81, 16.0, 2.0)}
+
+
 def test_band_references_are_roscoe_arthur_coulomb_of_the_peak_state_never_the_angle(
         monkeypatch):
-    """The band angle is printed against Roscoe 45 + ψ/2, Arthur 45 + (φ + ψ)/4 and Coulomb
-    45 + φ/2 of the peak state, each separately; the headline is Arthur's. An angle inside
-    the range must not become its own reference (that made the headline error 0 %)."""
+    """The band angle at onset is printed against Roscoe 45 + ψ/2, Arthur 45 + (φ + ψ)/4 and
+    Coulomb 45 + φ/2 of the peak state (φ0, ψ0), the angle at the end against those of the
+    band's state at the end (φ, ψ of its c), each separately; the headline is the onset
+    against Arthur's. An angle inside its range must not become its own reference (that
+    made the headline error 0 %), and each measurement says whether it lies in its range."""
     from contfab.scenes.case import build_parser, load_case
 
     biax = load_case("biaxial_shear_band")
-    run = {"peak": 3.0, "peak_strain": 0.01, "end": 2.5, "angle": 53.0, "phi0": 30.0,
-           "psi0": 10.0, "band_c_min": 0.8, "band_width": 0.1, "h": 0.1, "dofs": 1, "wall_s": 0.0, "steps": 1,
-           "median_newton": 1.0, "files": []}
-    monkeypatch.setattr(biax, "solve", lambda *a, **k: run)
-    args = build_parser(biax, "x").parse_args([])
-    args.out = None
-    result = biax.run(args)
-    refs = {f.source.split(" ")[0]: f.reference for f in result.figures}
-    assert refs == {"Arthur": 55.0, "Roscoe": 50.0, "Coulomb": 60.0}
-    assert result.figures[0].source.startswith("Arthur")
-    assert all(f.computed == 53.0 != f.reference for f in result.figures)
-    assert result.notes["in_roscoe_coulomb"] is True
+    for onset_angle, end_angle, inside in ((53.0, 47.0, (True, True)),
+                                           (49.0, 54.0, (False, False))):
+        monkeypatch.setattr(biax, "solve",
+                            lambda *a, **k: _fake_band_run(onset_angle, end_angle))
+        args = build_parser(biax, "x").parse_args([])
+        args.out = None
+        result = biax.run(args)
+        onset, end = result.figures[:3], result.figures[3:]
+        assert {f.source.split(" ")[0]: f.reference for f in onset} == \
+            {"Arthur": 55.0, "Roscoe": 50.0, "Coulomb": 60.0}
+        assert {f.source.split(" ")[0]: f.reference for f in end} == \
+            {"Arthur": 49.5, "Roscoe": 46.0, "Coulomb": 53.0}
+        assert result.figures[0].source.startswith("Arthur") and "onset" in result.figures[0].name
+        assert all(f.computed == onset_angle != f.reference for f in onset)
+        assert all(f.computed == end_angle != f.reference for f in end)
+        notes = result.notes
+        assert (notes["band_onset"]["in_roscoe_coulomb"], notes["band_end"]["in_roscoe_coulomb"]) \
+            == inside
+        assert (notes["band_onset"]["arthur"], notes["band_end"]["arthur"]) == (55.0, 49.5)
+
+
+def test_the_critical_state_band_references_are_45_degrees_and_45_plus_half_phi_star():
+    """At c = c* tier 1's laws give ψ = 0 and φ = φ*: the band state's Roscoe angle is 45°
+    and its Coulomb angle 45° + φ*/2 (Roscoe 1970; a band at the critical state dilates no
+    more), with φ* the shipped calibration's."""
+    from contfab.scenes.biaxial_shear_band import references
+    from contfab.scenes.material_options import angles_at
+
+    phi, psi = angles_at(SHIPPED, SHIPPED.tier1.c_star)
+    assert (phi, psi) == (pytest.approx(SHIPPED.tier1.phi_star_deg, abs=1e-12), 0.0)
+    ref = references(phi, psi, 46.0)
+    assert ref["roscoe"] == 45.0 and ref["in_roscoe_coulomb"]
+    assert ref["coulomb"] == pytest.approx(45.0 + SHIPPED.tier1.phi_star_deg / 2, abs=1e-12)
+
+
+def test_the_onset_window_runs_from_the_peak_to_a_stated_share_of_the_drop():
+    """On a curve rising to a peak at step 10 and softening to its end value, the onset
+    window starts at the peak and ends at the first later step below
+    peak − drop · (peak − end), before the end; a curve that does not soften has none, and
+    a drop outside (0, 1) is refused naming the value."""
+    from contfab.params import ParamError
+    from contfab.scenes.biaxial_shear_band import onset_window
+
+    k = np.arange(60)
+    ratio = np.where(k <= 10, 1.0 + 0.32 * k - 0.016 * k**2,
+                     1.8 + 0.8 * np.exp(-(k - 10) / 8.0))
+    peak, end = ratio.max(), ratio[-1]
+    for drop in (0.1, 0.25, 0.5):
+        k0, k1 = onset_window(ratio, drop)
+        assert k0 == 10 and ratio[k0] == peak
+        assert k0 < k1 < len(ratio) - 1
+        assert ratio[k1] <= peak - drop * (peak - end) < ratio[k1 - 1]
+    assert onset_window(np.linspace(1.0, 2.0, 20)) is None          # hardening to the end
+    with pytest.raises(ParamError, match="onset drop = 1 is outside"):
+        onset_window(ratio, 1.0)
+
+
+def test_the_band_measure_finds_a_strip_s_angle_and_the_mean_c_inside_it():
+    """A plastic strain increment confined to a strip 0.1 wide at 55° through the specimen's
+    centre, where c falls from 0.80 to 0.82 over the window (0.85 outside): the band lies
+    at 55° to the grid's 0.5° and one bin, and its c is the window's mean inside, 0.81."""
+    from contfab.fem import mesh as meshes
+    from contfab.fem.assembly import Discretization
+    from contfab.scenes.biaxial_shear_band import band_measure
+
+    disc = Discretization(meshes.delaunay_rectangle(1.0, 2.5, 1 / 16), "P2")
+    theta = math.radians(55.0)
+    s = (disc.points - [0.5, 1.25]) @ np.array([-math.sin(theta), math.cos(theta)])
+    inside = np.abs(s) < 0.05
+    gp0 = np.zeros(disc.npoints)
+    marks = [(gp0, np.where(inside, 0.80, 0.85)), (gp0 + inside, np.where(inside, 0.82, 0.85))]
+    band = band_measure(disc, marks, (0, 1))
+    assert band["angle"] == pytest.approx(55.0, abs=1.5)
+    assert band["band_c"] == pytest.approx(0.81, abs=1e-12)
+    assert math.isnan(band_measure(disc, marks, None)["band_c"])
 
 
 @pytest.mark.parametrize("argv, message", [
@@ -356,9 +445,7 @@ def test_a_failed_study_run_is_recorded_and_the_others_still_run(monkeypatch):
         case.run(args)
 
     biax = load_case("biaxial_shear_band")
-    main_run = {"peak": 3.0, "peak_strain": 0.01, "end": 2.5, "angle": 50.0, "phi0": 30.0,
-                "psi0": 10.0, "band_c_min": 0.8, "band_width": 0.1, "h": 0.1, "dofs": 1, "wall_s": 0.0, "steps": 1,
-                "median_newton": 1.0, "files": []}
+    main_run = _fake_band_run(52.0, 50.0)
 
     def fake_biax(params, element, level, dense, strain, out, progress, lam=None, **kw):
         if lam is not None:

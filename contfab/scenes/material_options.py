@@ -70,7 +70,12 @@ def with_c0(params: Params, c0) -> Params:
 
 def initial_angles(params: Params) -> tuple[float, float]:
     """(φ0, ψ0) in degrees of tier 1 at the parameter set's ``[initial] c0``."""
-    phi, psi, _, _ = tier1_angles(params.initial.c0, params.array(1))
+    return angles_at(params, params.initial.c0)
+
+
+def angles_at(params: Params, c: float) -> tuple[float, float]:
+    """(φ(c), ψ(c)) in degrees of tier 1's laws (also tier 2's) at the packing fraction ``c``."""
+    phi, psi, _, _ = tier1_angles(float(c), params.array(1))
     return math.degrees(phi), math.degrees(psi)
 
 
