@@ -164,11 +164,10 @@ def test_live_dem_matches_the_stored_dem_curves(live, name):
 
 KNOWN_MODEL_FAILURES: dict[tuple[str, int], str] = {}
 """Model defects these live checks found, as strict xfails (a fix shows up as a failure
-here and its entry must go). Emptied on 2026-12-01: the isochoric-shear c defects (tiers 1
-and 2) were the comparison of the hardening c_p with the DEM's kinematic c
-(tiers.packing_fraction), and tier 2 on the live loose biaxial passes with the calibrated
-parameters (its local-solve failure from that start with the earlier parameters is a
-kernel regression test)."""
+here and its entry must go). Empty: the isochoric-shear c is compared as the DEM's kinematic
+c (tiers.packing_fraction), not the hardening c_p, and tier 2 on the live loose biaxial
+passes with the calibrated parameters (a local-solve failure from that start with other
+parameters is a kernel regression test)."""
 
 
 @pytest.mark.parametrize("tier", [1, 2])

@@ -193,10 +193,9 @@ def test_fem_footing_ngamma_fast_quadratic_elements_buy_accuracy(tmp_path):
 @pytest.mark.slow
 def test_fem_band_fast_peak_and_angle_within_the_case_bounds(tmp_path):
     """The dense shear band on levels 1 and 2 (P2): the peak σ1/σ3 within 2.5 % of the
-    closed form at the initial density (measured 1.2 % and 2.0 %), the level-2 band within
-    5° of Arthur's angle (52.0° against 56.0°), and the finer mesh costs more. Level 1
-    (1 394 DOFs) does not resolve the band's angle: 53.5° with the 2026-12-01 parameters,
-    11.5° off Arthur's with the refit of 2026-12-02 — the band follows the coarse mesh."""
+    closed form at the initial density (measured 1.2 % and 2.0 %), the level-2 band at its
+    onset within 5° of Arthur's angle of the peak state (measured 52.5° against 56.0°; level
+    1: 55.5°), and the finer mesh costs more."""
     run("fem_band", tmp_path, fast=True, progress=False)
     t = _table(tmp_path, "fem_band")
     assert list(t["level"]) == [1, 2]
