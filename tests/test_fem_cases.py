@@ -136,6 +136,25 @@ def test_retaining_wall_fast_within_3_percent_of_rankine():
     assert errors["active"] < 0 < errors["passive"], errors
 
 
+def test_loose_active_wall_converges_between_the_tier0_bounds():
+    """The loose tier-1 backfill (c0 = 0.805: contracting, hardening from φ0 = 13.3° toward
+    φ* = 15.9°) behind a wall moving away, pushed past 0.0124 H, where its steps stall at a
+    relative residual of 1e-4 down to the minimum step: it converges at every step, and its
+    least K lies between the associated tier-0 K_a on the same mesh at φ* (the strength it
+    hardens to) and at φ0 (its initial strength)."""
+    result = run_case("retaining_wall", ["--tier", "1", "--c0", "loose", "--mode", "active",
+                                         "--element", "P2", "--displacement", "0.02",
+                                         "--quiet", "--out", "none"])
+    head = result.figures[0]
+    note = result.notes[head.name]
+    assert note["displacement"] == pytest.approx(0.02, rel=1e-9)
+    bounds = note["tier0_bounds"]
+    assert bounds["phi_star"]["phi"] > bounds["phi0"]["phi"]          # loose: φ0 < φ*
+    low, high = bounds["phi_star"]["tier0"], bounds["phi0"]["tier0"]
+    assert low < high < rankine_ka(bounds["phi0"]["phi"]) * 1.01
+    assert low < head.computed < high, (low, head.computed, high)
+
+
 def test_biaxial_band_angle_within_5_degrees_of_roscoe_coulomb_and_softening():
     """The band angle lies within 5° of the Roscoe-Coulomb range [45° + ψ0/2, 45° + φ0/2]
     (Vermeer 1990, "The orientation of shear bands in biaxial tests",
@@ -204,6 +223,8 @@ def test_band_references_are_roscoe_arthur_coulomb_of_the_peak_state_never_the_a
     (["case", "strip_footing", "--tol-stall", "2", "--out", "none"],
      "need 0 < tol <= tol_stall < 1, got tol = 1e-08, tol_stall = 2.0"),
     (["case", "retaining_wall", "--phi", "95", "--out", "none"], "phi_deg = 95 is outside"),
+    (["case", "retaining_wall", "--tol-stall-last", "2", "--out", "none"],
+     "tol_stall_last = 2.0 is outside the accepted range [tol_stall, 1)"),
     (["case", "strip_footing", "--c0", "dense-ish", "--out", "none"],
      "c0 = 'dense-ish' is not a packing fraction"),
     (["case", "retaining_wall", "--tier", "1", "--c0", "1.5", "--out", "none"],
