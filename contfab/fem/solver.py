@@ -24,7 +24,8 @@ force f_ext(t) = f_dead + t f_ramp (load control). Steps grow after easy
 convergence and are cut after a failure (too many iterations, a diverging or
 non-finite residual, a singular tangent, a failed constitutive update); a failed
 trial leaves no trace in the committed state. Below the minimum step the stage
-ends with :class:`ConvergenceError`, which carries the last converged state.
+ends with :class:`ConvergenceError`, which carries the last converged state (unless the
+step passes on the last-resort stall tolerance, ``NewtonOptions.tol_stall_last``).
 
 Convergence is scale-free: |r_f| ≤ tol · max(|f_ext|, |r_c|) (Euclidean norms),
 the residual on free DOFs against the applied and reaction forces. A failed step's
