@@ -26,6 +26,11 @@ values on the same mesh (associated; with Rankine's) at the critical angle φ* a
 between which it must lie: the same mesh, because the stiff displacement solution puts K_a
 below and K_p above Rankine by about 0.5 %, as much as a dense active wall's K lies above
 K_a(φ0).
+
+**Solver.** The rate-independent Newton of :mod:`contfab.fem.solver`, with the last-resort
+stall tolerance ``--tol-stall-last`` (:data:`TOL_STALL_LAST`) for a step that fails at the
+minimum step: the loose active wall needs it for three steps near 0.0124 H; a run that
+never fails there is unchanged by it.
 """
 from __future__ import annotations
 
