@@ -37,3 +37,19 @@ class Brittle(Elastic):
         res.stress[bad] = stress_n[bad]
         res.status[bad] = -1
         return res
+
+
+class Rough(Elastic):
+    """Elastic with a stress error of relative size ``eta`` whose sign follows the parity of
+    the strain increment's 12th decimal: it flips from one Newton iterate to the next at
+    random, so the relative residual stalls near ``eta`` at any step size."""
+
+    def __init__(self, eta, **kw):
+        super().__init__(**kw)
+        self.eta = eta
+
+    def update(self, stress_n, state_n, dstrain, dspin):
+        res = super().update(stress_n, state_n, dstrain, dspin)
+        sign = np.where(np.floor(dstrain[:, 1] * 1e12) % 2 == 0, 1.0, -1.0)
+        res.stress = res.stress * (1.0 + self.eta * sign)[:, None]
+        return res

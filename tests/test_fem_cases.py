@@ -136,6 +136,42 @@ def test_retaining_wall_fast_within_3_percent_of_rankine():
     assert errors["active"] < 0 < errors["passive"], errors
 
 
+def _loose_active_wall(displacement: float):
+    """The loose tier-1 wall moving away (P2, level 1): (figure, notes, K_a bounds)."""
+    result = run_case("retaining_wall", ["--tier", "1", "--c0", "loose", "--mode", "active",
+                                         "--element", "P2", "--displacement", str(displacement),
+                                         "--quiet", "--out", "none"])
+    head = result.figures[0]
+    note = result.notes[head.name]
+    assert note["displacement"] == pytest.approx(displacement, rel=1e-9)
+    bounds = note["tier0_bounds"]
+    assert bounds["phi_star"]["phi"] > bounds["phi0"]["phi"]          # loose: φ0 < φ*
+    low, high = bounds["phi_star"]["tier0"], bounds["phi0"]["tier0"]
+    assert low < high < rankine_ka(bounds["phi0"]["phi"]) * 1.01
+    return head, note, (low, high)
+
+
+def test_loose_active_wall_converges_between_the_tier0_bounds():
+    """The loose tier-1 backfill (c0 = 0.805: contracting, hardening from φ0 = 13.3° toward
+    φ* = 15.9°) behind a wall moving away by 0.02 H converges at every step, and its least
+    K lies between the associated tier-0 K_a on the same mesh at φ* (the strength it
+    hardens to) and at φ0 (its initial strength)."""
+    head, note, (low, high) = _loose_active_wall(0.02)
+    assert low < head.computed < high, (low, head.computed, high)
+
+
+@pytest.mark.slow
+def test_loose_active_wall_reaches_the_critical_state_at_a_tenth_of_the_height():
+    """The same wall pushed to 0.1 H, the calibrated runs' displacement (its steps stall at
+    a relative residual of 1e-4 down to the minimum step near 0.0124 H and pass on the
+    last-resort stall tolerance): K still lies between the bounds, and by 0.1 H it has come
+    within 2 % of the tier-0 K_a at φ*, the critical state's (the backfill has hardened)."""
+    head, note, (low, high) = _loose_active_wall(0.1)
+    assert low < head.computed < high, (low, head.computed, high)
+    assert head.computed < low * 1.02
+    assert note["last_resort_steps"] <= 0.02 * note["steps"]
+
+
 def test_biaxial_band_angle_within_5_degrees_of_roscoe_coulomb_and_softening():
     """The band angle at onset lies within 5° of the Roscoe-Coulomb range of the peak state
     [45° + ψ0/2, 45° + φ0/2] (Vermeer 1990, "The orientation of shear bands in biaxial
@@ -293,6 +329,8 @@ def test_the_band_measure_finds_a_strip_s_angle_and_the_mean_c_inside_it():
     (["case", "strip_footing", "--tol-stall", "2", "--out", "none"],
      "need 0 < tol <= tol_stall < 1, got tol = 1e-08, tol_stall = 2.0"),
     (["case", "retaining_wall", "--phi", "95", "--out", "none"], "phi_deg = 95 is outside"),
+    (["case", "retaining_wall", "--tol-stall-last", "2", "--out", "none"],
+     "tol_stall_last = 2.0 is outside the accepted range [tol_stall, 1)"),
     (["case", "strip_footing", "--c0", "dense-ish", "--out", "none"],
      "c0 = 'dense-ish' is not a packing fraction"),
     (["case", "retaining_wall", "--tier", "1", "--c0", "1.5", "--out", "none"],

@@ -10,7 +10,7 @@ from contfab.fem import loads as L
 from contfab.fem import mesh as M
 from contfab.fem.assembly import Discretization
 from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver, Stage
-from fem_helpers import Brittle, Elastic
+from fem_helpers import Brittle, Elastic, Rough
 
 
 def _compression(material, dt0=0.05, dt_min=1e-3):
@@ -50,6 +50,35 @@ def test_failed_step_is_cut_and_leaves_no_trace():
     assert np.abs(strain).max() <= 0.006
 
 
+def test_last_resort_stall_tolerance_accepts_only_steps_failed_at_the_minimum_step():
+    """A material whose stress error (relative 3e-4) keeps the residual above the stall
+    tolerance 1e-4 at any step: the stage fails at its first step without a last resort and
+    with one no looser than tol_stall; with tol_stall_last = 1e-3 every step is taken at the
+    minimum step, flagged, and the reaction matches the uniaxial-strain closed form to the
+    error's size. A material Newton converges on is not affected."""
+    for last in (None, 1e-4):
+        disc, solver, stage, top = _compression(Rough(3e-4), dt0=0.1, dt_min=0.1)
+        solver.options = NewtonOptions(tol_stall_last=last)
+        with pytest.raises(ConvergenceError, match="no converged step beyond t = 0 "):
+            list(solver.run_stage(stage))
+    disc, solver, stage, top = _compression(Rough(3e-4), dt0=0.1, dt_min=0.1)
+    solver.options = NewtonOptions(tol_stall_last=1e-3)
+    records = list(solver.run_stage(stage))
+    assert records[-1].t == pytest.approx(1.0)
+    assert all(r.last_resort and r.dt == pytest.approx(0.1) for r in records)
+    assert all(1e-4 < r.residuals[-1] <= 1e-3 for r in records)
+    assert solver.reactions(top) == pytest.approx(-0.01 * 8 / 3 * 2, rel=1e-3)
+    plain = [(r.t, r.residuals) for r in _run(Elastic(), None)]
+    assert [(r.t, r.residuals) for r in _run(Elastic(), 1e-3)] == plain
+    assert not any(r.last_resort for r in _run(Elastic(), 1e-3))
+
+
+def _run(material, last):
+    disc, solver, stage, _ = _compression(material)
+    solver.options = NewtonOptions(tol_stall_last=last)
+    return list(solver.run_stage(stage))
+
+
 def test_bad_stage_and_options_are_clear_errors():
     with pytest.raises(ValueError, match="dt_min <= dt0"):
         Stage("s", np.array([0]), np.array([0.0]), np.zeros(2), dt0=0.5, dt_min=0.6)
@@ -57,6 +86,9 @@ def test_bad_stage_and_options_are_clear_errors():
         Stage("s", np.array([0]), np.array([0.0, 1.0]), np.zeros(2))
     with pytest.raises(ValueError, match=r"need 0 < tol <= tol_stall < 1, got tol = 2"):
         NewtonOptions(tol=2)
+    with pytest.raises(ValueError, match=r"tol_stall_last = 5e-05 is outside the accepted "
+                                         r"range \[tol_stall, 1\)"):
+        NewtonOptions(tol_stall_last=5e-5)
 
 
 def test_failure_writes_last_state_and_report_and_no_partial_file(tmp_path):

@@ -24,7 +24,8 @@ force f_ext(t) = f_dead + t f_ramp (load control). Steps grow after easy
 convergence and are cut after a failure (too many iterations, a diverging or
 non-finite residual, a singular tangent, a failed constitutive update); a failed
 trial leaves no trace in the committed state. Below the minimum step the stage
-ends with :class:`ConvergenceError`, which carries the last converged state.
+ends with :class:`ConvergenceError`, which carries the last converged state (unless the
+step passes on the last-resort stall tolerance, ``NewtonOptions.tol_stall_last``).
 
 Convergence is scale-free: |r_f| ≤ tol · max(|f_ext|, |r_c|) (Euclidean norms),
 the residual on free DOFs against the applied and reaction forces. A failed step's
@@ -180,6 +181,13 @@ class NewtonOptions:
     ``spin_step`` is the difference step of the spin tangent (0: off).
     ``relaxation_time`` τ (in the stages' ``duration`` unit) makes every step a Duvaut–Lions
     viscoplastic step with k = Δt/τ (:mod:`contfab.fem.viscous`).
+    ``tol_stall_last`` (None: off) is the last resort of a step that failed from both starts
+    at the stage's minimum step: it is tried once more from both starts and accepted when
+    its residual stops falling at or below this looser tolerance (its record says so,
+    :attr:`StepRecord.last_resort`); only then does the stage end in
+    :class:`ConvergenceError`. A run that never reaches that point is unchanged by it, and
+    the next step equilibrates the total stress to ``tol`` again (the residual is not
+    incremental), so an accepted imbalance is not carried on.
     """
 
     tol: float = 1e-8
@@ -193,11 +201,15 @@ class NewtonOptions:
     line_search: int = 4
     extrapolate: bool = True
     relaxation_time: float | None = None
+    tol_stall_last: float | None = None
 
     def __post_init__(self):
         if not 0 < self.tol <= self.tol_stall < 1:
             raise ValueError(f"need 0 < tol <= tol_stall < 1, got tol = {self.tol}, "
                              f"tol_stall = {self.tol_stall}")
+        if self.tol_stall_last is not None and not self.tol_stall <= self.tol_stall_last < 1:
+            raise ValueError(f"tol_stall_last = {self.tol_stall_last!r} is outside the accepted "
+                             f"range [tol_stall, 1) = [{self.tol_stall}, 1)")
         if self.max_iter < 1:
             raise ValueError(f"max_iter = {self.max_iter} must be >= 1")
         if not self.grow >= 1 or not 0 < self.cut < 1:
@@ -227,6 +239,7 @@ class StepRecord:
     cuts: int = 0
     extrapolated: bool = False
     viscous_ratio: float = math.inf
+    last_resort: bool = False
 
     tol: float = 1e-8
 
@@ -382,15 +395,22 @@ class Solver:
             ratio = math.inf if opt.relaxation_time is None else \
                 dt * stage.duration / opt.relaxation_time
             starts = [None] if rate is None else [self.committed.u + dt * rate, None]
-            for predictor in starts:
-                trial, residuals, reason = self._newton(stage, system, u_start, t + dt, predictor,
-                                                        ratio)
+            at_min = dt <= stage.dt_min * (1 + 1e-9)
+            stalls = [opt.tol_stall] + ([opt.tol_stall_last] if at_min and
+                                        opt.tol_stall_last is not None else [])
+            for tol_stall in stalls:
+                for predictor in starts:
+                    trial, residuals, reason = self._newton(stage, system, u_start, t + dt,
+                                                            predictor, ratio, tol_stall)
+                    if trial is not None:
+                        break
+                    attempts.append({"t": t + dt, "dt": dt, "reason": reason,
+                                     "residuals": residuals, "tol_stall": tol_stall,
+                                     "start": "committed" if predictor is None else "extrapolated"})
                 if trial is not None:
                     break
-                attempts.append({"t": t + dt, "dt": dt, "reason": reason, "residuals": residuals,
-                                 "start": "committed" if predictor is None else "extrapolated"})
             if trial is None:
-                if dt <= stage.dt_min * (1 + 1e-9):
+                if at_min:
                     raise ConvergenceError(self._failure_message(stage, attempts, cuts),
                                            self.committed, attempts)
                 dt = max(dt * self.options.cut, stage.dt_min)
@@ -402,7 +422,7 @@ class Solver:
             t += dt
             record = StepRecord(stage.name, t, dt, residuals, cuts=cuts,
                                 extrapolated=predictor is not None, tol=self.options.tol,
-                                viscous_ratio=ratio)
+                                viscous_ratio=ratio, last_resort=tol_stall > opt.tol_stall)
             self.records.append(record)
             attempts, cuts = [], 0
             yield record
@@ -412,8 +432,11 @@ class Solver:
             self.committed = replace(self.committed, u=np.zeros_like(self.committed.u))
 
     def _newton(self, stage: Stage, system: ConstrainedSystem, u_start: np.ndarray, t: float,
-                predictor: np.ndarray | None, ratio: float = math.inf):
+                predictor: np.ndarray | None, ratio: float = math.inf,
+                tol_stall: float | None = None):
         """One step to stage parameter ``t``: (trial state or None, residual history, reason).
+
+        ``tol_stall`` overrides the options' stall tolerance (the last resort of run_stage).
 
         ``ratio`` k = Δt/τ < inf makes it a Duvaut–Lions step
         (:func:`contfab.fem.viscous.blend`).
@@ -423,6 +446,7 @@ class Solver:
         committed state and tangent, carries the prescribed increment.
         """
         c, opt, disc = self.committed, self.options, self.disc
+        stall_tol = opt.tol_stall if tol_stall is None else tol_stall
         self._ratio = ratio
         f_ext = stage.f_dead if stage.f_ramp is None else stage.f_dead + t * stage.f_ramp
         target = u_start + t * stage.increment
@@ -460,7 +484,7 @@ class Solver:
                 return None, residuals, self._why(f"residual diverged ({rel:.3g})", current)
             tangent, spin_tangent = self._accept(c, current)
             stalled = it >= 3 and rel > 0.5 * min(residuals[-4:-1])
-            if rel <= opt.tol or (rel <= opt.tol_stall and (stalled or it == opt.max_iter - 1)):
+            if rel <= opt.tol or (rel <= stall_tol and (stalled or it == opt.max_iter - 1)):
                 return self._field(stage, t, current), residuals, ""
         return None, residuals, self._why(f"no convergence in {opt.max_iter} iterations", current)
 
