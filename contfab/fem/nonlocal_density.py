@@ -53,7 +53,19 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
+from contfab.models.cone import STATUS_FAILED
 from contfab.params import ParamError
+
+OWN_MAXIT = 30
+"""Newton iterations on a step's own shift s = −κ Δc(s) (module doc) before the points still
+off the tolerance are reported failed (status −1: the solver cuts the step)."""
+OWN_TOL = 1e-12
+"""|s + κ Δc(s)| accepted as the root, in units of c."""
+OWN_STEP_C = 1e-8
+"""Forward-difference step in c for ∂σ/∂s and ∂Δc/∂s (≈ √ε_machine, c ~ 1)."""
+OWN_STEP_STRAIN = 1e-9
+"""Forward-difference step in each strain component for ∂Δc/∂Δε (the elastic strains
+are ~1/λ = 1e-4: the step stays far below them)."""
 
 
 def averaging_matrix(centroids: np.ndarray, areas: np.ndarray, length: float,
@@ -96,6 +108,7 @@ class NonlocalMaterial:
         self._disc = disc
         centroids = disc.mesh.p[:, disc.mesh.t].mean(axis=1).T
         self.matrix = averaging_matrix(centroids, disc.weights.sum(axis=1), length, cutoff)
+        self.kappa = np.repeat(self.m * (1.0 - self.matrix.diagonal()), disc.nq)
 
     @property
     def params(self):
@@ -114,12 +127,54 @@ class NonlocalMaterial:
         return np.repeat(self.m * (self.matrix @ c_e - c_e), self._disc.nq)
 
     def update(self, stress_n, state_n, dstrain, dspin):
-        """The wrapped update at c_n + δ (δ of ``state_n``, the step's start), δ taken back."""
-        delta = self.offset(state_n)
-        shifted = np.array(state_n, dtype=np.float64)
-        shifted[:, self._col] += delta
-        res = self.material.update(stress_n, shifted, dstrain, dspin)
-        res.state[:, self._col] -= delta
+        """The update of the module doc: the wrapped update at c_n + δ⁰ + s, s solving
+        s = −κ Δc(s) point by point, its tangent by the chain rule; the shift taken back."""
+        col, kappa = self._col, self.kappa
+        base = np.array(state_n, dtype=np.float64)
+        base[:, col] += self.offset(state_n)
+
+        def run(s, de=dstrain):
+            shifted = base.copy()
+            shifted[:, col] += s
+            res = self.material.update(stress_n, shifted, de, dspin)
+            return res, res.state[:, col] - shifted[:, col]
+
+        s = np.zeros(len(base))
+        lo, hi = np.full(len(s), -np.inf), np.full(len(s), np.inf)
+        for it in range(OWN_MAXIT):
+            res, dc = run(s)
+            res_h, dc_h = run(s + OWN_STEP_C)
+            g = s + kappa * dc
+            done = (np.abs(g) <= OWN_TOL) | (res.status < 0)
+            if done.all():
+                break
+            if it == OWN_MAXIT - 1:
+                res.status[~done] = STATUS_FAILED
+                break
+            slope = 1.0 + kappa * (dc_h - dc) / OWN_STEP_C
+            hi = np.where(g > 0.0, np.minimum(hi, s), hi)
+            lo = np.where(g < 0.0, np.maximum(lo, s), lo)
+            trial = s - g / np.where(slope > 0.0, slope, 1.0)
+            bisect = np.flatnonzero(np.isfinite(lo) & np.isfinite(hi)
+                                    & ~((trial > lo) & (trial < hi)))
+            trial[bisect] = 0.5 * (lo[bisect] + hi[bisect])
+            s = np.where(done, s, trial)
+        coupled = (kappa > 0.0) & (res.status >= 0) & ((dc != 0.0) | (dc_h != 0.0))
+        if coupled.any():
+            # ds/dε = −κ ∂Δc/∂ε / (1 + κ ∂Δc/∂s), D = ∂σ/∂ε + ∂σ/∂s ⊗ ds/dε
+            dsig_ds = (res_h.stress - res.stress) / OWN_STEP_C
+            slope = 1.0 + kappa * (dc_h - dc) / OWN_STEP_C
+            ddc_de = np.empty((len(s), 3))
+            for j in range(3):
+                de = np.array(dstrain, dtype=np.float64)
+                de[:, j] += OWN_STEP_STRAIN
+                ddc_de[:, j] = (run(s, de)[1] - dc) / OWN_STEP_STRAIN
+            ds_de = -kappa[:, None] * ddc_de / slope[:, None]
+            k = np.flatnonzero(coupled & (slope > 0.0))
+            res.tangent[k] += dsig_ds[k, :, None] * ds_de[k, None, :]
+        res.state[:, col] -= base[:, col] - np.array(state_n, dtype=np.float64)[:, col] + s
+        failed = res.status < 0
+        res.stress[failed], res.state[failed] = stress_n[failed], state_n[failed]
         return res
 
     def spin_tangent(self, stress_n, state_n, dstrain, dspin, res) -> np.ndarray:
