@@ -43,7 +43,7 @@ h = 0.125, 0.0625, 0.0417): a point's own dilation then raises its c_eff and har
 the step, as it does in the converged model, instead of softening it at the local rate. With
 δ held fixed over the whole step (the purely staggered scheme, ω = 1), where the plastic zone
 is ℓ wide its points flip between elastic unloading and plastic loading from one Newton
-iteration to the next, and the steps must be small (docs/fem_validation.md §3).
+iteration to the next, and the steps must be small.
 
 The relation is written per point, not for the element mean (δ_e = δ_e⁰ + m (A_ee − 1)
 (c_e − c_e⁰)): the mean couples the points of an element, whose tangent would then not be one
@@ -67,9 +67,9 @@ c = c_n + Δc. Tangent, by the chain rule through s(Δε):
 
 ∂σ/∂Δε|_s the wrapped material's consistent tangent, ∂σ/∂s, ∂Δc/∂s and ∂Δc/∂Δε forward
 differences of the update (``OWN_STEP_C``, ``OWN_STEP_STRAIN``): two update calls per Newton
-iteration on s and three more for the tangent, cheap against the linear solve. The spin
-tangent follows from D as for the wrapped material: s depends on the rotation-invariant Δc
-only, so the update stays objective.
+iteration on s and three more for the tangent (the cost: docs/fem_validation.md §3). The
+spin tangent follows from D as for the wrapped material: s depends on the rotation-invariant
+Δc only, so the update stays objective.
 
 References: Pijaudier-Cabot & Bažant (1987) J. Eng. Mech. 113(10), 1512–1533 (nonlocal
 damage); Vermeer & Brinkgreve (1994) "A new effective non-local strain measure for
@@ -164,16 +164,18 @@ class NonlocalMaterial:
         by the chain rule through s, the shift taken back. Points where s does not converge
         in ``OWN_MAXIT`` iterations fail (status −1, input stress and state)."""
         col, kappa = self._col, self.kappa
-        base = np.array(state_n, dtype=np.float64)
-        base[:, col] += self.offset(state_n)
+        stress_n = np.asarray(stress_n, dtype=np.float64)
+        state_n = np.asarray(state_n, dtype=np.float64)
+        delta = self.offset(state_n)
 
         def run(s, de=dstrain):
-            shifted = base.copy()
-            shifted[:, col] += s
+            """The wrapped update started from c_n + δ⁰ + s, and its own change of c."""
+            shifted = state_n.copy()
+            shifted[:, col] += delta + s
             res = self.material.update(stress_n, shifted, de, dspin)
             return res, res.state[:, col] - shifted[:, col]
 
-        s = np.zeros(len(base))
+        s = np.zeros(len(state_n))
         lo, hi = np.full(len(s), -np.inf), np.full(len(s), np.inf)
         for it in range(OWN_MAXIT):
             res, dc = run(s)
@@ -206,7 +208,7 @@ class NonlocalMaterial:
             ds_de = -kappa[:, None] * ddc_de / slope[:, None]
             k = np.flatnonzero(coupled & (slope > 0.0))
             res.tangent[k] += dsig_ds[k, :, None] * ds_de[k, None, :]
-        res.state[:, col] -= base[:, col] - np.array(state_n, dtype=np.float64)[:, col] + s
+        res.state[:, col] -= delta + s
         failed = res.status < 0
         res.stress[failed], res.state[failed] = stress_n[failed], state_n[failed]
         return res
