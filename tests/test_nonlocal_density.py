@@ -173,7 +173,7 @@ def _band(level: int, length: float, weight: float = 1.5) -> dict:
 def test_the_band_width_follows_the_internal_length():
     """On one mesh (level 1), doubling ℓ doubles the band's width to 20 %: the length of
     the model, not the element, sets it (dimensional analysis: w = k ℓ once ℓ is
-    resolved). 30 s."""
+    resolved). 15 s."""
     w1, w2 = (_band(1, length)["band_width"] for length in (0.1, 0.2))
     assert w2 / w1 == pytest.approx(2.0, rel=0.2), (w1, w2)
 
@@ -184,7 +184,7 @@ def test_the_post_peak_load_settles_with_the_mesh_under_an_internal_length(weigh
     """σ1/σ3 at 4 % axial strain within 2 % between two mesh levels with ℓ = 0.1 (the plain
     nonlocal m = 1 differs by 3.2 % between levels 1 and 2, the local model by 2.8 %); with
     m = 1.25 between levels 2 and 3 (h = ℓ/1.6 and ℓ/2.4: ℓ resolved), the band width too,
-    to 20 %. 3 min (m = 1.25) and 1 min (m = 1.5)."""
+    to 20 %. 1.5 min (m = 1.25) and 1 min (m = 1.5)."""
     runs = [_band(level, 0.1, weight) for level in levels]
     ends = [r["end"] for r in runs]
     assert ends[1] == pytest.approx(ends[0], rel=0.02), ends
