@@ -29,17 +29,47 @@ truncation, so δ = 0 there too; near a side the operator averages over the part
 neighbourhood inside the body (normalized by the weights present). As ℓ → 0 every
 element sees only itself and δ = 0 exactly: the local model.
 
-Time integration (staggered, explicit in the average): δ is computed from the state at
-the start of the step (the committed state the solver passes to every update of a step)
-and held fixed during the step's Newton iterations; the wrapped material's update runs on
-the state with c shifted by δ, and the shift is taken back from the updated state. The
-Newton matrix is the local material's consistent tangent at fixed δ (exact for the step's
-problem); the price is a lag of one step in the average, an error of first order in the
-step size, and a step problem that is the local softening one: inside a step a point's own
-dilation softens it at the full local rate, while the converged over-nonlocal model weighs
-it by 1 − m(1 − A_ee) < 0. Where the plastic zone is ℓ wide its points then flip between
-elastic unloading and plastic loading from one iteration to the next, and Newton needs many
-iterations and small steps (measured in docs/fem_validation.md §3).
+Time integration (implicit in the point's own contribution, explicit in its neighbours').
+A step starts from δ⁰ = δ of the committed state (the state the solver passes to every update
+of a step). Inside the step each point's own change of c counts with the weight the model
+gives an element's own change, ∂c_eff,e/∂c_e = 1 + m (A_ee − 1), A_ee the operator's
+diagonal; the neighbours' change enters at the next step's δ⁰ (a lag of one step):
+
+    c_eff,p = c_eff,p⁰ + ω_e (c_p − c_p⁰),   ω_e = 1 − κ_e,   κ_e = m (1 − A_ee),
+
+c_eff,p⁰ = c_p⁰ + δ⁰_e. Over-nonlocal weights make ω < 0 where the elements are small
+against ℓ (m = 1.25, ℓ = 0.1 in the biaxial case: median ω 0.09, −0.17, −0.21 at
+h = 0.125, 0.0625, 0.0417): a point's own dilation then raises its c_eff and hardens it within
+the step, as it does in the converged model, instead of softening it at the local rate. With
+δ held fixed over the whole step (the purely staggered scheme, ω = 1), where the plastic zone
+is ℓ wide its points flip between elastic unloading and plastic loading from one Newton
+iteration to the next, and the steps must be small.
+
+The relation is written per point, not for the element mean (δ_e = δ_e⁰ + m (A_ee − 1)
+(c_e − c_e⁰)): the mean couples the points of an element, whose tangent would then not be one
+3×3 matrix per point (the solver's assembly takes one per point). The two differ by
+κ_e (Δc_e − Δc_p), the spread of a step's increment within an element, which the next step's
+δ⁰ (computed exactly from the committed state) takes back like the neighbours' lag: both are
+errors of first order in the step size, and as ℓ → 0 (κ = 0) the update is the local one.
+
+Implementation (no kernel change): the wrapped update runs at c_n + δ⁰ + s, s a per-point
+shift, and returns its own change Δc(s) = c_out − (c_n + δ⁰ + s); its end state then carries
+c_eff⁰ + ω Δc exactly when
+
+    s = −κ_e Δc(s),
+
+a scalar equation per point, solved by Newton (∂Δc/∂s by a forward difference of the
+vectorized update, safeguarded by bisection on the bracket of sign changes) to
+|s + κ Δc| <= ``OWN_TOL``; elastic points have Δc = 0 and s = 0. The state keeps
+c = c_n + Δc. Tangent, by the chain rule through s(Δε):
+
+    D = ∂σ/∂Δε|_s + ∂σ/∂s ⊗ ds/dΔε,   ds/dΔε = −κ ∂Δc/∂Δε / (1 + κ ∂Δc/∂s),
+
+∂σ/∂Δε|_s the wrapped material's consistent tangent, ∂σ/∂s, ∂Δc/∂s and ∂Δc/∂Δε forward
+differences of the update (``OWN_STEP_C``, ``OWN_STEP_STRAIN``): two update calls per Newton
+iteration on s and three more for the tangent (the cost: docs/fem_validation.md §3). The
+spin tangent follows from D as for the wrapped material: s depends on the rotation-invariant
+Δc only, so the update stays objective.
 
 References: Pijaudier-Cabot & Bažant (1987) J. Eng. Mech. 113(10), 1512–1533 (nonlocal
 damage); Vermeer & Brinkgreve (1994) "A new effective non-local strain measure for
@@ -53,7 +83,20 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
+from contfab.models.cone import STATUS_FAILED
 from contfab.params import ParamError
+
+OWN_MAXIT = 30
+"""Newton iterations on a step's own shift s = −κ Δc(s) (module doc) before the points still
+off the tolerance are reported failed (status −1: the solver cuts the step)."""
+OWN_TOL = 1e-12
+"""|s + κ Δc(s)| accepted as the root, in units of c."""
+OWN_STEP_C = 1e-8
+"""Forward-difference step in c for ∂σ/∂s and ∂Δc/∂s (≈ √ε_machine, c ~ 1)."""
+OWN_STEP_STRAIN = 1e-9
+"""Forward-difference step in each strain component for ∂Δc/∂Δε: far below the elastic
+strains, p/(λ p_ref) ~ 1e-3 with the shipped λ = 1000, so a step rarely crosses a point's
+elastic/plastic boundary."""
 
 
 def averaging_matrix(centroids: np.ndarray, areas: np.ndarray, length: float,
@@ -80,7 +123,8 @@ def averaging_matrix(centroids: np.ndarray, areas: np.ndarray, length: float,
 class NonlocalMaterial:
     """``material`` (any tier with a ``c`` state column) with the nonlocal packing fraction
     of the module doc, over the quadrature points of ``disc``: internal length ``length``
-    (mesh units, > 0), weight ``m`` (>= 1; 1 plain, > 1 over-nonlocal)."""
+    (mesh units, > 0), weight ``m`` (>= 1; 1 plain, > 1 over-nonlocal). ``matrix`` is the
+    operator A, ``kappa`` (npoints,) the κ = m (1 − A_ee) of each point's element."""
 
     def __init__(self, material, disc, length: float, m: float = 1.0, cutoff: float = 3.0):
         if "c" not in material.state_names:
@@ -96,6 +140,7 @@ class NonlocalMaterial:
         self._disc = disc
         centroids = disc.mesh.p[:, disc.mesh.t].mean(axis=1).T
         self.matrix = averaging_matrix(centroids, disc.weights.sum(axis=1), length, cutoff)
+        self.kappa = np.repeat(self.m * (1.0 - self.matrix.diagonal()), disc.nq)
 
     @property
     def params(self):
@@ -114,12 +159,58 @@ class NonlocalMaterial:
         return np.repeat(self.m * (self.matrix @ c_e - c_e), self._disc.nq)
 
     def update(self, stress_n, state_n, dstrain, dspin):
-        """The wrapped update at c_n + δ (δ of ``state_n``, the step's start), δ taken back."""
+        """The update of the module doc: the wrapped update at c_n + δ⁰ + s (δ⁰ of
+        ``state_n``, the step's start), s solving s = −κ Δc(s) point by point, the tangent
+        by the chain rule through s, the shift taken back. Points where s does not converge
+        in ``OWN_MAXIT`` iterations fail (status −1, input stress and state)."""
+        col, kappa = self._col, self.kappa
+        stress_n = np.asarray(stress_n, dtype=np.float64)
+        state_n = np.asarray(state_n, dtype=np.float64)
         delta = self.offset(state_n)
-        shifted = np.array(state_n, dtype=np.float64)
-        shifted[:, self._col] += delta
-        res = self.material.update(stress_n, shifted, dstrain, dspin)
-        res.state[:, self._col] -= delta
+
+        def run(s, de=dstrain):
+            """The wrapped update started from c_n + δ⁰ + s, and its own change of c."""
+            shifted = state_n.copy()
+            shifted[:, col] += delta + s
+            res = self.material.update(stress_n, shifted, de, dspin)
+            return res, res.state[:, col] - shifted[:, col]
+
+        s = np.zeros(len(state_n))
+        lo, hi = np.full(len(s), -np.inf), np.full(len(s), np.inf)
+        for it in range(OWN_MAXIT):
+            res, dc = run(s)
+            res_h, dc_h = run(s + OWN_STEP_C)
+            g = s + kappa * dc
+            done = (np.abs(g) <= OWN_TOL) | (res.status < 0)
+            if done.all():
+                break
+            if it == OWN_MAXIT - 1:
+                res.status[~done] = STATUS_FAILED
+                break
+            slope = 1.0 + kappa * (dc_h - dc) / OWN_STEP_C
+            hi = np.where(g > 0.0, np.minimum(hi, s), hi)
+            lo = np.where(g < 0.0, np.maximum(lo, s), lo)
+            trial = s - g / np.where(slope > 0.0, slope, 1.0)
+            bisect = np.flatnonzero(np.isfinite(lo) & np.isfinite(hi)
+                                    & ~((trial > lo) & (trial < hi)))
+            trial[bisect] = 0.5 * (lo[bisect] + hi[bisect])
+            s = np.where(done, s, trial)
+        coupled = (kappa > 0.0) & (res.status >= 0) & ((dc != 0.0) | (dc_h != 0.0))
+        if coupled.any():
+            # ds/dε = −κ ∂Δc/∂ε / (1 + κ ∂Δc/∂s), D = ∂σ/∂ε + ∂σ/∂s ⊗ ds/dε
+            dsig_ds = (res_h.stress - res.stress) / OWN_STEP_C
+            slope = 1.0 + kappa * (dc_h - dc) / OWN_STEP_C
+            ddc_de = np.empty((len(s), 3))
+            for j in range(3):
+                de = np.array(dstrain, dtype=np.float64)
+                de[:, j] += OWN_STEP_STRAIN
+                ddc_de[:, j] = (run(s, de)[1] - dc) / OWN_STEP_STRAIN
+            ds_de = -kappa[:, None] * ddc_de / slope[:, None]
+            k = np.flatnonzero(coupled & (slope > 0.0))
+            res.tangent[k] += dsig_ds[k, :, None] * ds_de[k, None, :]
+        res.state[:, col] -= delta + s
+        failed = res.status < 0
+        res.stress[failed], res.state[failed] = stress_n[failed], state_n[failed]
         return res
 
     def spin_tangent(self, stress_n, state_n, dstrain, dspin, res) -> np.ndarray:
