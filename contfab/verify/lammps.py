@@ -135,7 +135,7 @@ def lammps_curve(state, dyn, kind, seed, dem_rows, path_name, gamma_t, remap="v"
     if path_name == "shear_reversal":
         eng = LammpsShear(state, dyn, dyn.gdot_ref, max(steps), gamma_t, remap)
     else:
-        eng = LammpsBiaxial(state, dyn, dyn.gdot_ref, max(steps), gamma_t)
+        eng = LammpsBiaxial(state, dyn, dyn.gdot_ref, max(steps), gamma_t, remap)
     try:
         out, stage = [], 0
         for r in dem_rows:
@@ -294,7 +294,7 @@ def compare(out, n: int = 1000, seeds=(1, 2, 3), kinds=("dense", "loose"), kappa
                               for s in summaries]),
         "table": write_json(out / "table.json", {
             "settings": {"n": n, "seeds": list(seeds), "kinds": list(kinds), "kappa": kappa,
-                         "path": path, **({"shear": shear, "remap": remap,
+                         "path": path, "remap": remap, **({"shear": shear,
                                            "steady_from": STEADY_FROM,
                                            "recovery_fraction": RECOVERY_FRACTION}
                                           if path == "shear_reversal" else

