@@ -205,7 +205,7 @@ def _run_verify(args) -> int:
 
     from dem.job import LOOSE, Settings
 
-    check_settings(args.n, args.seeds, args.strain, args.rows, args.path, args.shear)
+    check_settings(args.n, args.seeds, args.strain, args.rows, args.path, args.shear, args.remap)
     loose = dict(LOOSE)
     if args.loose_target_c0 is not None:
         loose["target_c0"] = args.loose_target_c0
