@@ -153,13 +153,17 @@ def test_bad_settings_are_refused_before_anything_runs(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_dense_biaxial_agrees_with_lammps_within_the_seed_scatter(tmp_path):
-    """N = 1000, seeds 1-3, dense, to 25 % (docs/dem_lammps.md: about 10 CPU-minutes)."""
+    """N = 1000, seeds 1-3, dense, to 25 %, the matched kinematics (remap v): strength,
+    density, dilation and coordination within two standard errors (docs/dem_lammps.md,
+    about 10 CPU-minutes; the residual B/A is not among them: its DEM seed scatter there
+    is far below one run's wander)."""
     _lammps_or_skip()
     from contfab.verify.lammps import compare
 
-    res = compare(tmp_path, n=1000, seeds=(1, 2, 3), kinds=("dense",), strain=0.25, rows=100)
+    res = compare(tmp_path, n=1000, seeds=(1, 2, 3), kinds=("dense",), strain=0.25, rows=100,
+                  remap="v")
     t = res["table"]["dense"]
-    for q in ("peak_RP", "RP", "c", "z", "z_no_rattlers", "BA"):
+    for q in ("peak_RP", "RP", "c", "eps_v", "z", "z_no_rattlers"):
         assert t[q]["within_scatter"], (q, t[q])
     # both dense samples dilate and reach R/P of a granular residual state
     for eng in ("dem", "lammps"):
