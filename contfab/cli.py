@@ -183,9 +183,11 @@ def _add_verify(p: argparse.ArgumentParser) -> None:
                      help="shear_reversal: amplitude a, gamma 0 -> a -> -a (default 1, the "
                           "standard path; accepted (0, 1])")
     lmp.add_argument("--remap", choices=("v", "x"), default="v",
-                     help="shear_reversal: LAMMPS's discs follow the shear by Lees-Edwards "
-                          "boundaries with whole velocities (v, default) or by affine "
-                          "remapping with fluctuation velocities (x)")
+                     help="how LAMMPS's discs follow the cell: whole velocities "
+                          "(fluctuation + streaming profile) with Lees-Edwards boundaries "
+                          "(v, default; biaxial: sigma_xx held by a servo on the x strain "
+                          "rate) or affine remapping with fluctuation velocities (x; "
+                          "biaxial: sigma_xx held by the barostat)")
     lmp.add_argument("--rows", type=int, default=150, help="measured rows per run (default 150)")
     lmp.add_argument("--inertial", type=float, default=1e-3, help="inertial number (default 1e-3)")
     lmp.add_argument("--gamma-t", choices=("half", "zero"), default="half",
@@ -203,7 +205,7 @@ def _run_verify(args) -> int:
 
     from dem.job import LOOSE, Settings
 
-    check_settings(args.n, args.seeds, args.strain, args.rows, args.path, args.shear)
+    check_settings(args.n, args.seeds, args.strain, args.rows, args.path, args.shear, args.remap)
     loose = dict(LOOSE)
     if args.loose_target_c0 is not None:
         loose["target_c0"] = args.loose_target_c0

@@ -7,8 +7,10 @@ e = 0.55, κ as given; dense: μ_prep = 0, loose: :data:`dem.job.LOOSE`); its ta
 (:mod:`contfab.verify.lammps_engine`). Both then follow one of two paths (``path``):
 
 * ``biaxial``: compression along y at the strain rate γ̇ = I (true strain rate) with σxx
-  held at -P0 (the DEM by its servo, LAMMPS by its barostat), to the axial strain
-  ``strain``;
+  held at -P0, to the axial strain ``strain`` (the DEM by its servo; LAMMPS, with
+  ``remap`` ``v``, by a servo on the x strain rate with whole velocities and
+  Lees-Edwards boundaries on both axes, or, with ``x``, by its barostat with affine
+  remapping and fluctuation velocities: :class:`contfab.verify.lammps_engine.LammpsBiaxial`);
 * ``shear_reversal``: the DEM's standard path ``simple_shear_reversal`` (L_xy = +I to the
   shear strain γ = a, then L_xy = -I to γ = -a, σyy held at -P0, L_xx = L_yx = 0) with
   its lengths, output intervals and stops scaled from a = 1 to the amplitude
@@ -43,7 +45,7 @@ from pathlib import Path as FsPath
 import numpy as np
 
 from contfab.verify.contacts import MEASURES, contact_measures
-from contfab.verify.lammps_engine import LammpsBiaxial, LammpsShear
+from contfab.verify.lammps_engine import REMAPS, LammpsBiaxial, LammpsShear
 from dem.fileio import atomic_path, write_csv, write_json
 from dem.measure import Contacts
 
@@ -135,7 +137,7 @@ def lammps_curve(state, dyn, kind, seed, dem_rows, path_name, gamma_t, remap="v"
     if path_name == "shear_reversal":
         eng = LammpsShear(state, dyn, dyn.gdot_ref, max(steps), gamma_t, remap)
     else:
-        eng = LammpsBiaxial(state, dyn, dyn.gdot_ref, max(steps), gamma_t)
+        eng = LammpsBiaxial(state, dyn, dyn.gdot_ref, max(steps), gamma_t, remap)
     try:
         out, stage = [], 0
         for r in dem_rows:
@@ -267,6 +269,7 @@ def compare(out, n: int = 1000, seeds=(1, 2, 3), kinds=("dense", "loose"), kappa
     from contfab.bench.dem_lammps import lammps_class
     from dem.job import LOOSE
 
+    check_settings(n, seeds, strain, rows, path, shear, remap)
     lammps_class()                        # LammpsUnavailable before anything runs
     out = FsPath(out)
     loose = LOOSE if loose is None else loose
@@ -294,7 +297,7 @@ def compare(out, n: int = 1000, seeds=(1, 2, 3), kinds=("dense", "loose"), kappa
                               for s in summaries]),
         "table": write_json(out / "table.json", {
             "settings": {"n": n, "seeds": list(seeds), "kinds": list(kinds), "kappa": kappa,
-                         "path": path, **({"shear": shear, "remap": remap,
+                         "path": path, "remap": remap, **({"shear": shear,
                                            "steady_from": STEADY_FROM,
                                            "recovery_fraction": RECOVERY_FRACTION}
                                           if path == "shear_reversal" else
@@ -307,10 +310,13 @@ def compare(out, n: int = 1000, seeds=(1, 2, 3), kinds=("dense", "loose"), kappa
     return {"written": written, "table": table, "runs": summaries}
 
 
-def check_settings(n, seeds, strain, rows, path: str = "biaxial", shear: float = MAX_SHEAR) -> None:
+def check_settings(n, seeds, strain, rows, path: str = "biaxial", shear: float = MAX_SHEAR,
+                   remap: str = "v") -> None:
     """Refuse bad settings before anything runs (names the value and the range)."""
     if path not in PATHS:
         raise ValueError(f"path {path!r} unknown; accepted {PATHS}")
+    if remap not in REMAPS:
+        raise ValueError(f"remap {remap!r} unknown; accepted {REMAPS}")
     if not (0.0 < shear <= MAX_SHEAR):
         raise ValueError(f"shear amplitude = {shear} out of range; accepted (0, {MAX_SHEAR:g}]")
     if not (isinstance(n, int) and n >= 20):
