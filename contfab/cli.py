@@ -190,8 +190,9 @@ def _add_verify(p: argparse.ArgumentParser) -> None:
                           "biaxial: sigma_xx held by the barostat)")
     lmp.add_argument("--rows", type=int, default=150, help="measured rows per run (default 150)")
     lmp.add_argument("--inertial", type=float, default=1e-3, help="inertial number (default 1e-3)")
-    lmp.add_argument("--gamma-t", choices=("half", "zero"), default="half",
-                     help="LAMMPS tangential dashpot: gamma_t = gamma_n/2 (default) or none")
+    lmp.add_argument("--gamma-t", choices=("half", "zero"), default="zero",
+                     help="LAMMPS tangential dashpot: none (default; the DEM's law has none) "
+                          "or gamma_t = gamma_n/2 (LAMMPS's usual)")
     lmp.add_argument("--loose-target-c0", type=float,
                      help="loose samples: the seed's first realization with c0 <= this "
                           "(dem prepare --target-c0; default: the first realization)")

@@ -19,6 +19,9 @@ e = 0.55, κ as given; dense: μ_prep = 0, loose: :data:`dem.job.LOOSE`); its ta
   velocities with Lees-Edwards boundaries, or ``x``, affine remapping and fluctuation
   velocities).
 
+LAMMPS's tangential dashpot is ``gamma_t``: ``"zero"`` (the default) is the DEM's law,
+which has none; ``"half"`` is LAMMPS's usual γt = γn/2.
+
 Both are measured at the same steps by the same code
 (:func:`contfab.verify.contacts.contact_measures`: contact stress, R/P, τ/σn = σxy/-σyy,
 c, z, z*, B/A, sliding fraction).
@@ -263,7 +266,7 @@ def overlay_plot(curves: list[dict], path_name: str, file) -> None:
 
 def compare(out, n: int = 1000, seeds=(1, 2, 3), kinds=("dense", "loose"), kappa: float = 1e3,
             strain: float = 0.3, rows: int = 150, inertial: float = 1e-3,
-            gamma_t: str = "half", loose: dict | None = None, path: str = "biaxial",
+            gamma_t: str = "zero", loose: dict | None = None, path: str = "biaxial",
             shear: float = MAX_SHEAR, remap: str = "v", progress=None) -> dict:
     """Run the comparison (module doc); returns {what: file written} and the table."""
     from contfab.bench.dem_lammps import lammps_class
