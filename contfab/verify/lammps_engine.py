@@ -81,12 +81,15 @@ from __future__ import annotations
 import math
 import os
 import tempfile
+from contextlib import contextmanager
 
 import numpy as np
 
 from contfab.bench.dem_lammps import PDAMP_STEPS, lammps_class, normal_damping, write_data
 
 GAMMA_T = ("half", "zero")
+DISC_INERTIA = 0.5
+"""I / (m r²) of LAMMPS's integrators here (``nve/sphere disc``, ``nph/sphere ... disc``)."""
 
 
 def pair_style(law, gamma_n: float, gamma_t: str) -> str:
@@ -160,14 +163,40 @@ class LammpsSample:
         x[ids - 1] = self.lmp.numpy.extract_atom("x")[:self.n, :2]
         return x
 
+    @contextmanager
+    def _step_velocities(self):
+        """The owned discs' velocities and spins set back to the ones the step's force
+        evaluation used, v - (dt/2) f/m and ω - (dt/2) τ/I (module doc, (m)), and restored
+        bit for bit on exit; nothing to undo before the first step."""
+        if self.step == 0:
+            yield
+            return
+        get = self.lmp.numpy.extract_atom
+        v, w = get("v")[:self.n], get("omega")[:self.n]
+        f, torque = get("f")[:self.n], get("torque")[:self.n]
+        m, r = get("rmass")[:self.n], get("radius")[:self.n]
+        saved = v.copy(), w.copy()
+        dtf = 0.5 * self.dt
+        v -= (dtf / m)[:, None] * f
+        w -= ((dtf / DISC_INERTIA) / (r * r * m))[:, None] * torque
+        try:
+            yield
+        finally:
+            v[:] = saved[0]
+            w[:] = saved[1]
+
     def contacts(self):
-        """(x, h, i, j, force on i) of the touching pairs now; h Gauss-reduced."""
+        """(x, h, i, j, force on i) of the touching pairs now, the forces at the last
+        step's force evaluation (module doc, (m)); h Gauss-reduced."""
         from lammps import LMP_STYLE_LOCAL, LMP_TYPE_ARRAY
 
         from dem.periodic_cell import reduce_cell
 
-        pl = self.lmp.numpy.extract_compute("pl", LMP_STYLE_LOCAL, LMP_TYPE_ARRAY)
-        pp = self.lmp.numpy.extract_compute("pp", LMP_STYLE_LOCAL, LMP_TYPE_ARRAY)
+        with self._step_velocities():
+            pl = self.lmp.numpy.extract_compute("pl", LMP_STYLE_LOCAL, LMP_TYPE_ARRAY)
+            pp = self.lmp.numpy.extract_compute("pp", LMP_STYLE_LOCAL, LMP_TYPE_ARRAY)
+            pl = None if pl is None else np.array(pl)
+            pp = None if pp is None else np.array(pp)
         x, h = self._positions(), reduce_cell(self._box()[1])[0]
         if pl is None or len(pl) == 0:
             return x, h, np.zeros(0, int), np.zeros(0, int), np.zeros((0, 2))
