@@ -74,7 +74,30 @@ Measurements use the Gauss-reduced cell
 
 Contacts come from ``compute pair/local`` (the normal force on the first atom,
 fx fy, and the tangential one, p1 p2) and ``compute property/local`` (the two atom IDs)
-over touching pairs (``cutoff radius``).
+over touching pairs (``cutoff radius``), read at the last step's force evaluation.
+LAMMPS's step (velocity Verlet) is
+
+    v_{n+1/2} = v_n + (dt/2) f_n/m,   x_{n+1} = x_n + dt v_{n+1/2},
+    f_{n+1} = F(x_{n+1}, v_{n+1/2}),  v_{n+1} = v_{n+1/2} + (dt/2) f_{n+1}/m,
+
+and the same for the spins ω with the torques τ and I = m r²/2 (:data:`DISC_INERTIA`);
+the Coulomb cap |ft| <= μ fn and the truncation of the shear history are applied in F.
+``compute pair/local`` re-evaluates each pair's force by the pair style's ``single()``
+with the velocities the atoms hold when it is invoked: after the step, v_{n+1}, with
+which the dashpots give other forces than the step's, and contacts that slid sit up to
+about 1 % below the bound. So the owned discs are set back for the extraction,
+
+    v <- v - (dt/2) f/m,   ω <- ω - (dt/2) τ/I,                                      (m)
+
+(ghost discs still hold the velocities communicated for the step's force evaluation),
+the computes are invoked, and the saved velocities and spins are restored bit for bit:
+the trajectory does not depend on the measurement (tested). With ``fix nve/sphere``
+(biaxial, ``remap = "v"``) the forces read are the step's to rounding (tested against a
+read-out inside the step, at its ``post_force``); with ``fix nph/sphere`` (simple shear,
+biaxial ``remap = "x"``) the barostat's velocity scaling in the last half step is not
+undone, and they are the step's to about 1e-8 of the largest contact force (|ft|/(μ fn)
+to 1e-7). Before the first step the forces are the setup's, evaluated with the loaded
+velocities, and nothing is set back.
 """
 from __future__ import annotations
 
