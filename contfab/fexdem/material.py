@@ -235,7 +235,8 @@ class FexdemSolver(Solver):
         dt_next = record.dt * o.grow if record.iterations <= o.easy_iter else record.dt
         c = self.committed
         records = [{"stage": r.stage, "t": r.t, "dt": r.dt, "residuals": r.residuals,
-                    "cuts": r.cuts, "extrapolated": r.extrapolated} for r in self.records]
+                    "cuts": r.cuts, "extrapolated": r.extrapolated, "overstress": r.overstress,
+                    "overstress_mean": r.overstress_mean} for r in self.records]
         with atomic_path(self.ckdir / FE_CHECKPOINT) as tmp:
             with open(tmp, "wb") as f:
                 np.savez(f, fe_step=len(self.records), stage=c.stage, t=c.t, dt_next=dt_next,
