@@ -10,7 +10,7 @@ from contfab.fem import loads as L
 from contfab.fem import mesh as M
 from contfab.fem.assembly import Discretization
 from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver, Stage
-from fem_helpers import Brittle, Elastic, Rough
+from fem_helpers import Brittle, Elastic, Rough, Softening
 
 
 def _compression(material, dt0=0.05, dt_min=1e-3):
@@ -257,3 +257,36 @@ def test_dashpot_adds_an_isotropic_stiffness_over_the_step():
             check_viscosity(bad)
         with pytest.raises(ValueError, match=r"accepted range \[0, inf\)"):
             NewtonOptions(viscosity=bad)
+
+
+def test_dashpot_carries_a_snapping_back_bar_through_its_peak():
+    """A bar of 10 elements pulled at one end, its first element 10 % weaker, with linear
+    damage softening steep enough for a snap-back (the elastic unloading of the bar
+    releases more than the weak element can take): under displacement control the
+    rate-independent Newton cycles with period 2 at the peak and the stage fails at the
+    minimum step; with the dashpot (η = 0.01) every step converges, the force falls
+    after the peak and the strain localizes in the weak element: every other point stays
+    below its damage threshold κ0 (the localized solution, the only one past the peak)."""
+    mesh = M.tensor(np.linspace(0, 10, 11), np.linspace(0, 1, 2), "quad")
+    disc = Discretization(mesh, "Q8R")
+    weak = disc.points[:, 0] < 1.0
+    right = L.boundary_dofs(disc, "right", "x")
+    fixed = np.concatenate([L.boundary_dofs(disc, "left", "x"),
+                            L.boundary_dofs(disc, "left", "y")[:1], right])
+    inc = np.where(np.isin(fixed, right), 1.6e-3 * 10 * 0.7, 0.0)
+    stage = Stage("pull", fixed, inc, np.zeros(disc.ndofs), dt0=0.1, dt_max=0.1, dt_min=1e-4)
+    n = disc.npoints
+
+    def solver(eta):
+        mat = Softening(np.where(weak, 0.9e-3, 1e-3), 3e-3)
+        return Solver(disc, mat, np.zeros((n, 3)), np.zeros((n, 5)), NewtonOptions(
+            tol=1e-8, tol_stall=1e-6, viscosity=eta, line_search=0, extrapolate=False))
+
+    with pytest.raises(ConvergenceError, match="no convergence"):
+        list(solver(0.0).run_stage(stage))
+    s = solver(0.01)
+    forces = [s.reactions(right) for _ in s.run_stage(stage)]
+    assert s.committed.t == pytest.approx(1.0)
+    assert forces[-1] < 0.8 * max(forces)
+    kappa = s.committed.state[:, 4]
+    assert kappa[weak].min() > 1.5e-3 and kappa[~weak].max() <= 1e-3
