@@ -487,13 +487,18 @@ def _add_fexdem_band(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="the run's output directory (its cells/)")
     p.add_argument("--nx", type=int, default=None, help="the run's elements across")
     p.add_argument("--ny", type=int, default=None, help="the run's elements up")
+    p.add_argument("--since", default=None, metavar="FE_STATE",
+                   help="a copy of an earlier field checkpoint of the run (OUT/cells/"
+                        "fe_state.npz then): measure the strain increment since it "
+                        "(default: the total strain)")
 
 
 def _run_fexdem_band(args) -> None:
     from contfab.fexdem.compare import band_of_run
 
-    res = band_of_run(args.case, args.out, args.nx, args.ny)
-    print(f"{args.case} at t = {res['t']:.4g} (step {res['step']}): shear strain contrast "
+    res = band_of_run(args.case, args.out, args.nx, args.ny, args.since)
+    since = "" if args.since is None else f" since t = {res['t_since']:.4g}"
+    print(f"{args.case} at t = {res['t']:.4g} (step {res['step']}){since}: shear strain contrast "
           f"{res['contrast']:.3g}, top-10 % ratio {res['peak_ratio']:.3g}, half of it on "
           f"{100 * res['half_area']:.1f} % of the area; strongest strip at {res['angle_deg']:.0f}° "
           f"from x, offset {res['offset']:.3g} from the centre, holding "

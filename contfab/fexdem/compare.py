@@ -146,11 +146,14 @@ def _rows_before(curve: Path, solver: FexdemSolver, measure) -> list[list]:
     return [r + pad for r in rows] + [[last.stage, t, last.iterations, last.cuts, *now.values()]]
 
 
-def band_of_run(case: str, out: str | Path, nx: int | None = None, ny: int | None = None) -> dict:
+def band_of_run(case: str, out: str | Path, nx: int | None = None, ny: int | None = None,
+                since: str | Path | None = None) -> dict:
     """Localization (:mod:`contfab.fexdem.band`) of the FE×DEM field checkpointed in
     ``out``/cells (a finished or interrupted run of ``case`` on ``nx`` × ``ny`` elements):
-    its total strain since the start; written to ``out``/band.json and
-    ``out``/<case>_dem_band.png."""
+    its total strain since the start, or with ``since`` (a copy of an earlier field
+    checkpoint of the same run) the strain increment since that checkpoint; written to
+    ``out``/band.json and ``out``/<case>_dem_band.png (``band_since.json`` and
+    ``<case>_dem_band_since.png`` with ``since``)."""
     if case not in CASES:
         raise ValueError(f"case {case!r} unknown; accepted {sorted(CASES)}")
     cfg = {k: v for k, v in CASES[case].items() if k in ("nx", "ny", "width", "height")}
@@ -165,11 +168,20 @@ def band_of_run(case: str, out: str | Path, nx: int | None = None, ny: int | Non
     if len(u) != disc.ndofs:
         raise ValueError(f"{ck} has {len(u)} DOFs, the {cfg['nx']} x {cfg['ny']} mesh of {case} "
                          f"{disc.ndofs} (give the run's --nx and --ny)")
+    title, tag, extra = f"{case}: FE×DEM shear strain at t = {t:.3g}", "", {}
+    if since is not None:
+        with np.load(since) as z:
+            u0, t0 = z["u"], float(z["t"])
+        if len(u0) != len(u) or not t0 < t:
+            raise ValueError(f"since = {since}: a field of {len(u0)} DOFs at t = {t0}; accepted "
+                             f"an earlier checkpoint (t < {t}) of this run ({len(u)} DOFs)")
+        u = u - u0
+        title, tag, extra = (f"{case}: FE×DEM shear strain increment, t = {t0:.3g} to {t:.3g}",
+                             "_since", {"since": str(since), "t_since": t0})
     strain = disc.strain(u)[0]
-    res = {"case": case, "t": t, "step": step, **cfg, **localization(disc, strain)}
-    res["figure"] = str(band_figure(out / f"{case}_dem_band.png", disc, strain,
-                                    f"{case}: FE×DEM shear strain at t = {t:.3g}"))
-    res["json"] = str(write_json(out / "band.json", res))
+    res = {"case": case, "t": t, "step": step, **extra, **cfg, **localization(disc, strain)}
+    res["figure"] = str(band_figure(out / f"{case}_dem_band{tag}.png", disc, strain, title))
+    res["json"] = str(write_json(out / f"band{tag}.json", res))
     return res
 
 
