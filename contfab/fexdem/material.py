@@ -187,7 +187,10 @@ class FexdemSolver(Solver):
     converged step; :meth:`resume` rebuilds the solver from it, on cells made with
     ``resume=`` :func:`checkpointed_step` from the same ``ckdir``, and :meth:`run_stage` with the returned
     ``start`` finishes the stage: the same numbers as without the interruption (a trial
-    is a function of the committed state and the increment only).
+    is a function of the committed state and the increment only). A dashpot
+    (``NewtonOptions.viscosity``, :mod:`contfab.fem.dashpot`) has no state: the checkpoint
+    holds the cells' stress, the residual with its overstress, and the steps' overstress
+    in their records; a run may be resumed with another viscosity.
     """
 
     def __init__(self, disc, material: DemMaterial, options: NewtonOptions,
