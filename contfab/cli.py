@@ -397,9 +397,15 @@ def _add_fexdem(p: argparse.ArgumentParser) -> None:
     p.add_argument("--relax", type=float, default=None, metavar="FORCE_TOL",
                    help="hold every cell after its increment until the unbalanced force ratio "
                         "< FORCE_TOL (default: no hold, the campaign's continuous I = 1e-3 paths)")
+    p.add_argument("--viscosity", type=float, default=0.0, metavar="ETA",
+                   help="FE×DEM: a linear dashpot in parallel with every cell, stress "
+                        "ETA * (strain increment) / (step of the loading parameter t in [0, 1]), "
+                        "ETA in p0 units times t, >= 0 (default 0: no dashpot); its overstress "
+                        "is in the curve and the report")
     p.add_argument("--resume", action="store_true",
                    help="continue an interrupted run in OUT from its checkpoints (OUT/cells; "
-                        "same case and settings), then run the tiers")
+                        "same case and settings; --viscosity may differ, the dashpot has no "
+                        "state), then run the tiers")
     p.add_argument("--reference", default=None, metavar="DIR",
                    help="a finished FE×DEM run of the same scene and sample (its --out): "
                         "compare the tiers and --adaptive with it instead of running FE×DEM "
@@ -422,6 +428,9 @@ def _run_fexdem(args) -> None:
     from contfab.params import default_params, load_params
     from dem.job import Settings, prepare_job
 
+    from contfab.fem.dashpot import check_viscosity
+
+    check_viscosity(args.viscosity)         # a bad viscosity fails before any work
     if args.adaptive is not None:
         from contfab.fexdem.adaptive import model_choice
         model_choice(args.adaptive)         # a bad tolerance fails before any work
@@ -448,7 +457,7 @@ def _run_fexdem(args) -> None:
                  workers=args.workers, address=args.address, options=options,
                  resume=args.resume, blocks=args.blocks, layout=args.layout,
                  adaptive=args.adaptive, reference=args.reference, shadows=args.shadows,
-                 **extra)
+                 viscosity=args.viscosity, **extra)
     print(f"{args.case}: {report['cells']} DEM cells of {report['discs_per_cell']} discs, "
           f"{report['elements']} {report['element']} elements"
           + (f", FE×DEM resumed at t = {report['resumed_from_t']:.4g}" if args.resume else ""))
@@ -459,6 +468,11 @@ def _run_fexdem(args) -> None:
                                        f"{err['cost_ratio_dem_over_tier']:.3g}")
         print(f"  {name:>6}: {r['wall_s']:.1f} s, {r['steps']} steps, {r['newton_iterations']} "
               f"Newton iterations{tail}")
+    if args.viscosity > 0 and "dashpot" in report:
+        d = report["dashpot"]
+        print(f"  dashpot: viscosity {args.viscosity:g}, overstress up to "
+              f"{d['overstress_max_p0']:.3g} p0 at a point, {d['overstress_mean_max_p0']:.3g} p0 "
+              f"on average")
     if args.adaptive is not None:
         a = report["adaptive"]
         print(f"  adaptive: {a['cell_points']} of {a['points']} points ended as DEM cells, "
@@ -473,13 +487,18 @@ def _add_fexdem_band(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="the run's output directory (its cells/)")
     p.add_argument("--nx", type=int, default=None, help="the run's elements across")
     p.add_argument("--ny", type=int, default=None, help="the run's elements up")
+    p.add_argument("--since", default=None, metavar="FE_STATE",
+                   help="a copy of an earlier field checkpoint of the run (OUT/cells/"
+                        "fe_state.npz then): measure the strain increment since it "
+                        "(default: the total strain)")
 
 
 def _run_fexdem_band(args) -> None:
     from contfab.fexdem.compare import band_of_run
 
-    res = band_of_run(args.case, args.out, args.nx, args.ny)
-    print(f"{args.case} at t = {res['t']:.4g} (step {res['step']}): shear strain contrast "
+    res = band_of_run(args.case, args.out, args.nx, args.ny, args.since)
+    since = "" if args.since is None else f" since t = {res['t_since']:.4g}"
+    print(f"{args.case} at t = {res['t']:.4g} (step {res['step']}){since}: shear strain contrast "
           f"{res['contrast']:.3g}, top-10 % ratio {res['peak_ratio']:.3g}, half of it on "
           f"{100 * res['half_area']:.1f} % of the area; strongest strip at {res['angle_deg']:.0f}° "
           f"from x, offset {res['offset']:.3g} from the centre, holding "

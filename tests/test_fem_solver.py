@@ -10,7 +10,7 @@ from contfab.fem import loads as L
 from contfab.fem import mesh as M
 from contfab.fem.assembly import Discretization
 from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver, Stage
-from fem_helpers import Brittle, Elastic, Rough
+from fem_helpers import Brittle, Elastic, Rough, Softening
 
 
 def _compression(material, dt0=0.05, dt_min=1e-3):
@@ -214,3 +214,79 @@ def test_rigid_plastic_limit_plateau_converges_at_every_step():
     for m in (biaxial(lam=1e8), biaxial(dt0=1.0, push=1000.0, dt_min=1e-6)):
         assert m.accuracy < 1e-9, m.note
         assert " 0 accepted at the stall tolerance" in m.note, m.note
+
+
+def test_dashpot_adds_an_isotropic_stiffness_over_the_step():
+    """σ = σ_mat + η Δε/Δt with tensorial Δε (σ_v,xy = η Δγ/(2Δt)): for an elastic material
+    (K, G) one step of time Δt is the elastic problem with K + η/(2Δt), G + η/(2Δt)
+    (C + (η/Δt) diag(1, 1, 1/2) is isotropic). A sheared block (a non-uniform field)
+    solved in one step of Δt = 0.5: the same displacements and reactions as that stiffer
+    material, both in one Newton iteration (the dashpot's tangent is consistent), and the
+    committed stress is the material's alone."""
+    from contfab.fem.dashpot import check_viscosity, stiffness, stress
+
+    eta, dt = 3.0, 0.5
+    de = np.array([[1e-3, -2e-3, 4e-3]])
+    np.testing.assert_allclose(stress(de, stiffness(eta, dt)),
+                               [[eta * 1e-3 / dt, -eta * 2e-3 / dt, eta * 2e-3 / dt]], rtol=1e-15)
+    mesh = M.tensor(np.linspace(0, 2, 4), np.linspace(0, 1, 3))
+    disc = Discretization(mesh, "P2")
+    top = L.boundary_dofs(disc, "top", "x")
+    fixed = np.concatenate([L.boundary_dofs(disc, "bottom", "x"),
+                            L.boundary_dofs(disc, "bottom", "y"), top])
+    inc = np.where(np.isin(fixed, top), 0.01, 0.0)
+    stage = Stage("shear", fixed, inc, np.zeros(disc.ndofs), dt0=1.0, dt_max=1.0, duration=dt)
+    n = disc.npoints
+    runs = {}
+    for name, mat, visc in (("dashpot", Elastic(2.0, 1.0), eta),
+                            ("stiffer", Elastic(2.0 + eta / (2 * dt), 1.0 + eta / (2 * dt)), 0.0)):
+        solver = Solver(disc, mat, np.zeros((n, 3)), np.zeros((n, 1)),
+                        NewtonOptions(viscosity=visc, extrapolate=False))
+        runs[name] = solver, list(solver.run_stage(stage))
+    (sd, rd), (ss, rs) = runs["dashpot"], runs["stiffer"]
+    assert [r.iterations for r in rd] == [r.iterations for r in rs] == [1]
+    np.testing.assert_allclose(sd.committed.u, ss.committed.u, rtol=1e-10, atol=1e-14)
+    np.testing.assert_allclose(sd.committed.residual[fixed], ss.committed.residual[fixed],
+                               rtol=1e-10, atol=1e-12)
+    strain = disc.strain(sd.committed.u)[0]
+    np.testing.assert_allclose(sd.committed.stress, strain @ Elastic(2.0, 1.0).d.T, atol=1e-14)
+    over = np.linalg.norm(stress(strain, stiffness(eta, dt)) * [1, 1, np.sqrt(2)], axis=1)
+    assert rd[0].overstress == pytest.approx(over.max(), rel=1e-12)
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match=r"accepted range \[0, inf\)"):
+            check_viscosity(bad)
+        with pytest.raises(ValueError, match=r"accepted range \[0, inf\)"):
+            NewtonOptions(viscosity=bad)
+
+
+def test_dashpot_carries_a_snapping_back_bar_through_its_peak():
+    """A bar of 10 elements pulled at one end, its first element 10 % weaker, with linear
+    damage softening steep enough for a snap-back (the elastic unloading of the bar
+    releases more than the weak element can take): under displacement control the
+    rate-independent Newton cycles with period 2 at the peak and the stage fails at the
+    minimum step; with the dashpot (η = 0.01) every step converges, the force falls
+    after the peak and the strain localizes in the weak element: every other point stays
+    below its damage threshold κ0 (the localized solution, the only one past the peak)."""
+    mesh = M.tensor(np.linspace(0, 10, 11), np.linspace(0, 1, 2), "quad")
+    disc = Discretization(mesh, "Q8R")
+    weak = disc.points[:, 0] < 1.0
+    right = L.boundary_dofs(disc, "right", "x")
+    fixed = np.concatenate([L.boundary_dofs(disc, "left", "x"),
+                            L.boundary_dofs(disc, "left", "y")[:1], right])
+    inc = np.where(np.isin(fixed, right), 1.6e-3 * 10 * 0.7, 0.0)
+    stage = Stage("pull", fixed, inc, np.zeros(disc.ndofs), dt0=0.1, dt_max=0.1, dt_min=1e-4)
+    n = disc.npoints
+
+    def solver(eta):
+        mat = Softening(np.where(weak, 0.9e-3, 1e-3), 3e-3)
+        return Solver(disc, mat, np.zeros((n, 3)), np.zeros((n, 5)), NewtonOptions(
+            tol=1e-8, tol_stall=1e-6, viscosity=eta, line_search=0, extrapolate=False))
+
+    with pytest.raises(ConvergenceError, match="no convergence"):
+        list(solver(0.0).run_stage(stage))
+    s = solver(0.01)
+    forces = [s.reactions(right) for _ in s.run_stage(stage)]
+    assert s.committed.t == pytest.approx(1.0)
+    assert forces[-1] < 0.8 * max(forces)
+    kappa = s.committed.state[:, 4]
+    assert kappa[weak].min() > 1.5e-3 and kappa[~weak].max() <= 1e-3

@@ -267,6 +267,57 @@ def test_interrupted_run_resumes_from_the_field_and_cell_checkpoints(sample, tmp
     np.testing.assert_array_equal(solver.committed.u, ref.committed.u)
 
 
+def test_dashpot_overstress_is_eta_times_the_rate_and_a_dashpot_run_resumes(sample, tmp_path):
+    """The dashpot (NewtonOptions.viscosity): η = 0 is the solver without it, bitwise; with
+    η > 0 on the homogeneous biaxial scene every point carries σ_cell + η Δε/Δt, so the
+    axial reaction per width is the cells' mean σyy plus η Δεyy/Δt and the cells' lateral
+    stress is -p0 - η Δεxx/Δt (within the Newton tolerance); a dashpot run stopped after
+    step 2 of 4 and resumed from its checkpoints (the dashpot has no state) ends with the
+    uninterrupted numbers bitwise."""
+    import dataclasses
+    scene = build("biaxial", strain=8e-4, steps=4, rough=False)
+    n, eta = scene.disc.npoints, 0.2
+    top = scene.measured["sigma_yy"][1]
+
+    def run(newton, ckdir=None, stop=None, resume=False):
+        with SerialCells(sample, n, NO_RELAX, ckdir=ckdir,
+                         resume=checkpointed_step(ckdir) if resume else 0) as cells:
+            mat = DemMaterial(cells, scene.disc, default_params(), tangent="dem")
+            if resume:
+                solver, start = FexdemSolver.resume(scene.disc, mat, newton, ckdir, scene.stage)
+            else:
+                solver, start = FexdemSolver(scene.disc, mat, newton, ckdir=ckdir), None
+            for _ in solver.run_stage(scene.stage, start):
+                if stop is not None and len(solver.records) == stop:
+                    break
+        return solver
+
+    plain = run(NEWTON)
+    zero = run(dataclasses.replace(NEWTON, viscosity=0.0))
+    np.testing.assert_array_equal(zero.committed.u, plain.committed.u)
+    np.testing.assert_array_equal(zero.committed.residual, plain.committed.residual)
+    assert [r.residuals for r in zero.records] == [r.residuals for r in plain.records]
+    assert all(r.overstress == 0.0 for r in zero.records)
+
+    viscous = dataclasses.replace(NEWTON, viscosity=eta)
+    ref = run(viscous)
+    c = ref.committed
+    rate = c.dstrain / ref.records[-1].dt                  # Δε/Δt, duration 1
+    axial = np.sum(c.residual[top]) / scene.width
+    np.testing.assert_allclose(axial, np.mean(c.stress[:, 1] + eta * rate[:, 1]), rtol=1e-2)
+    assert abs(eta * rate[:, 1].mean()) > 0.1 * abs(axial - plain.committed.stress[:, 1].mean())
+    np.testing.assert_allclose(c.stress[:, 0], -scene.p0 - eta * rate[:, 0], rtol=2e-2)
+    assert ref.records[-1].overstress == pytest.approx(
+        eta * np.sqrt((rate[:, :2] ** 2).sum(1) + 0.5 * rate[:, 2] ** 2).max(), rel=1e-12)
+
+    run(viscous, tmp_path, stop=2)
+    resumed = run(viscous, tmp_path, resume=True)
+    assert [r.residuals for r in resumed.records] == [r.residuals for r in ref.records]
+    assert [r.overstress for r in resumed.records] == [r.overstress for r in ref.records]
+    np.testing.assert_array_equal(resumed.committed.u, ref.committed.u)
+    np.testing.assert_array_equal(resumed.committed.stress, ref.committed.stress)
+
+
 @pytest.mark.parametrize("field_written", [True, False])
 def test_a_killed_scene_run_resumes_with_the_uninterrupted_curve(sample, tmp_path, monkeypatch,
                                                                  field_written):

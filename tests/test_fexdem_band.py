@@ -36,3 +36,32 @@ def test_a_straight_band_is_found_at_its_angle(disc, theta):
 def test_an_unstrained_field_is_an_error(disc):
     with pytest.raises(ValueError, match="mean shear strain"):
         localization(disc, np.zeros((disc.npoints, 3)))
+
+
+def test_band_of_run_since_measures_the_increment(tmp_path):
+    """`contfab fexdem-band --since`: a run whose field holds a band at 60° by an earlier
+    checkpoint and a uniform simple shear after it: the total strain is localized, the
+    increment since that checkpoint is uniform (no contrast); a checkpoint that is not
+    earlier is refused."""
+    from contfab.fexdem.compare import band_of_run
+    from contfab.fexdem.material import FE_CHECKPOINT
+
+    scene = build("biaxial", nx=6, ny=12, width=1.0, height=1.5)
+    x, y = scene.disc.basis.doflocs
+    t = np.radians(60.0)
+    dist = -np.sin(t) * (x - 0.5) + np.cos(t) * (y - 0.75)
+    slip = np.clip(dist / 0.15, -1.0, 1.0) * 0.01          # a shear band along the 60° line
+    u0 = np.zeros(scene.disc.ndofs)
+    u0[0::2], u0[1::2] = (slip * np.cos(t))[0::2], (slip * np.sin(t))[1::2]
+    u1 = u0.copy()
+    u1[0::2] += 1e-3 * y[0::2]                              # uniform simple shear γ = 1e-3
+    (tmp_path / "cells").mkdir()
+    np.savez(tmp_path / "early.npz", u=u0, t=0.2, fe_step=2)
+    np.savez(tmp_path / "cells" / FE_CHECKPOINT, u=u1, t=0.5, fe_step=5)
+    total = band_of_run("biaxial", tmp_path, 6, 12)
+    inc = band_of_run("biaxial", tmp_path, 6, 12, since=tmp_path / "early.npz")
+    assert total["contrast"] > 0.5 and abs(total["angle_deg"] - 60.0) <= 5.0
+    assert inc["contrast"] < 1e-9 and inc["t_since"] == 0.2
+    assert (tmp_path / "band_since.json").exists() and (tmp_path / "biaxial_dem_band_since.png").exists()
+    with pytest.raises(ValueError, match="an earlier checkpoint"):
+        band_of_run("biaxial", tmp_path, 6, 12, since=tmp_path / "cells" / FE_CHECKPOINT)

@@ -58,6 +58,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from contfab.fem import dashpot
 from contfab.fem.assembly import Discretization
 from contfab.fem.viscous import blend, elastic_stiffness
 from contfab.models.cone import STATUS_APEX
@@ -181,6 +182,9 @@ class NewtonOptions:
     ``spin_step`` is the difference step of the spin tangent (0: off).
     ``relaxation_time`` τ (in the stages' ``duration`` unit) makes every step a Duvaut–Lions
     viscoplastic step with k = Δt/τ (:mod:`contfab.fem.viscous`).
+    ``viscosity`` η (stress × the stages' ``duration`` unit, >= 0) puts a linear dashpot in
+    parallel with the material at every point, σ = σ_mat + η Δε/Δt
+    (:mod:`contfab.fem.dashpot`); 0 (default) leaves the solver as without it, bitwise.
     ``tol_stall_last`` (None: off) is the last resort of a step that failed from both starts
     at the stage's minimum step: it is tried once more from both starts and accepted when
     its residual stops falling at or below this looser tolerance (its record says so,
@@ -202,6 +206,7 @@ class NewtonOptions:
     extrapolate: bool = True
     relaxation_time: float | None = None
     tol_stall_last: float | None = None
+    viscosity: float = 0.0
 
     def __post_init__(self):
         if not 0 < self.tol <= self.tol_stall < 1:
@@ -220,6 +225,7 @@ class NewtonOptions:
                                                      and self.relaxation_time > 0):
             raise ValueError(f"relaxation_time = {self.relaxation_time!r} is outside the "
                              "accepted range (0, inf)")
+        dashpot.check_viscosity(self.viscosity)
         if not 0 <= self.spin_step < 1e-3:
             raise ValueError(f"spin_step = {self.spin_step} must lie in [0, 1e-3)")
 
@@ -229,7 +235,9 @@ class StepRecord:
     """One committed step: stage, t, dt, relative residuals per iterate, failed attempts.
 
     With an extrapolated start (``extrapolated``) the first residual is the predictor's,
-    before any linear solve.
+    before any linear solve. ``overstress`` and ``overstress_mean``: the largest and the
+    quadrature-weighted mean |σ_v| of the dashpot over the points (stress units; 0 without
+    one, ``NewtonOptions.viscosity``).
     """
 
     stage: str
@@ -240,6 +248,8 @@ class StepRecord:
     extrapolated: bool = False
     viscous_ratio: float = math.inf
     last_resort: bool = False
+    overstress: float = 0.0
+    overstress_mean: float = 0.0
 
     tol: float = 1e-8
 
@@ -367,6 +377,7 @@ class Solver:
                                     res.status, disc.internal_force(stress0))
         self.records: list[StepRecord] = []
         self.stage_start: np.ndarray | None = None
+        self._dashpot: np.ndarray | None = None
 
     def run_stage(self, stage: Stage, start: tuple[float, float, np.ndarray] | None = None
                   ) -> Iterator[StepRecord]:
@@ -394,6 +405,8 @@ class Solver:
             dt = min(dt, 1.0 - t)
             ratio = math.inf if opt.relaxation_time is None else \
                 dt * stage.duration / opt.relaxation_time
+            self._dashpot = None if opt.viscosity == 0 else \
+                dashpot.stiffness(opt.viscosity, dt * stage.duration)
             starts = [None] if rate is None else [self.committed.u + dt * rate, None]
             at_min = dt <= stage.dt_min * (1 + 1e-9)
             stalls = [opt.tol_stall] + ([opt.tol_stall_last] if at_min and
@@ -422,7 +435,8 @@ class Solver:
             t += dt
             record = StepRecord(stage.name, t, dt, residuals, cuts=cuts,
                                 extrapolated=predictor is not None, tol=self.options.tol,
-                                viscous_ratio=ratio, last_resort=tol_stall > opt.tol_stall)
+                                viscous_ratio=ratio, last_resort=tol_stall > opt.tol_stall,
+                                **self._overstress(trial))
             self.records.append(record)
             attempts, cuts = [], 0
             yield record
@@ -467,6 +481,8 @@ class Solver:
             u = c.u
             r = disc.internal_force(c.stress) - f_ext
             tangent, spin_tangent = c.tangent, c.spin_tangent
+            if self._dashpot is not None:
+                tangent = tangent + self._dashpot
         for it in range(opt.max_iter):
             try:
                 du = system.solve(disc.tangent(tangent, spin_tangent), r,
@@ -515,15 +531,29 @@ class Solver:
             blend(res, c.stress, c.state, dstrain, dspin, self._elastic, self._ratio)
         if np.any(res.status < 0):
             return None
-        r = self.disc.internal_force(res.stress) - f_ext
+        total = res.stress if self._dashpot is None else \
+            res.stress + dashpot.stress(dstrain, self._dashpot)
+        r = self.disc.internal_force(total) - f_ext
         free = norm(system.free_residual(r))
         rel = free / (max(norm(f_ext), norm(r[system.fixed])) or 1.0)
         return _Iterate(u, dstrain, dspin, res, r, free, rel)
 
     def _accept(self, c: FieldState, it: _Iterate) -> tuple[np.ndarray, np.ndarray]:
-        """The Newton-matrix tangents (D, g) at an accepted iterate (g stored on it)."""
+        """The Newton-matrix tangents (D, g) at an accepted iterate (g stored on it); D
+        includes the dashpot's (the stored field keeps the material's)."""
         it.spin_tangent = self._spin_tangent(c.stress, c.state, it.dstrain, it.dspin, it.res)
-        return np.ascontiguousarray(it.res.tangent), it.spin_tangent
+        tangent = np.ascontiguousarray(it.res.tangent)
+        if self._dashpot is not None:
+            tangent = tangent + self._dashpot
+        return tangent, it.spin_tangent
+
+    def _overstress(self, field: FieldState) -> dict:
+        """{} without a dashpot, else its largest and weighted mean |σ_v| in ``field``."""
+        if self._dashpot is None:
+            return {}
+        mag = dashpot.magnitude(dashpot.stress(field.dstrain, self._dashpot))
+        w = self.disc.weights.reshape(-1)
+        return {"overstress": float(mag.max()), "overstress_mean": float(w @ mag / w.sum())}
 
     def _line_search(self, c: FieldState, system: ConstrainedSystem, f_ext, u, du,
                      current: _Iterate | None) -> _Iterate | None:

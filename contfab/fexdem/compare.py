@@ -33,6 +33,14 @@ compiled by one untimed update first).
 (``--reference DIR``) takes that run's curve, last field and report as the FE×DEM run
 instead of running it again (the tiers and the adaptive run are compared with it).
 
+``viscosity`` = η > 0 (``--viscosity ETA``) puts a linear dashpot in parallel with every
+cell (:mod:`contfab.fem.dashpot`: σ = σ_cell + η Δε/Δt, Δt the step of the stage's loading
+parameter t ∈ [0, 1], η in p0 units times t); the FE×DEM curve carries its overstress
+(``overstress_max``, ``overstress_mean``: the largest and the mean |σ_v| of the step, units
+of p0, 0 without a dashpot) and the report its ``dashpot`` figures. The dashpot has no
+state: a resumed run may continue with another η (the report's ``newton.viscosity`` is the
+resumed part's).
+
 ``resume=True`` (``contfab fexdem ... --resume``) continues an interrupted or killed
 FE×DEM run in ``--out`` from ``cells/`` (same scene and settings): the field and the
 cells restart from the field's last checkpointed step (the cells keep two generations
@@ -46,13 +54,14 @@ from __future__ import annotations
 import csv
 import json
 import time
+from dataclasses import replace
 from types import SimpleNamespace
 from pathlib import Path
 
 import numpy as np
 
 from contfab.executor import WORKER_ENV
-from contfab.fem import analysis
+from contfab.fem import analysis, dashpot
 from contfab.fem.material import TierMaterial
 from contfab.fem.solver import NewtonOptions, Solver
 from contfab.fexdem.adaptive import AdaptiveMaterial, AdaptiveSolver, model_choice
@@ -131,14 +140,20 @@ def _rows_before(curve: Path, solver: FexdemSolver, measure) -> list[list]:
                 if float(r[1]) < t - 1e-12:
                     rows.append([r[0], float(r[1]), int(r[2]), int(r[3]), *map(float, r[4:])])
     last = solver.records[-1]
-    return rows + [[last.stage, t, last.iterations, last.cuts, *measure(solver).values()]]
+    now = measure(solver)
+    # rows of a run written before the curve carried the dashpot's columns: no dashpot, 0
+    pad = [0.0] * max(0, len(now) - max((len(r) - 4 for r in rows), default=len(now)))
+    return [r + pad for r in rows] + [[last.stage, t, last.iterations, last.cuts, *now.values()]]
 
 
-def band_of_run(case: str, out: str | Path, nx: int | None = None, ny: int | None = None) -> dict:
+def band_of_run(case: str, out: str | Path, nx: int | None = None, ny: int | None = None,
+                since: str | Path | None = None) -> dict:
     """Localization (:mod:`contfab.fexdem.band`) of the FE×DEM field checkpointed in
     ``out``/cells (a finished or interrupted run of ``case`` on ``nx`` × ``ny`` elements):
-    its total strain since the start; written to ``out``/band.json and
-    ``out``/<case>_dem_band.png."""
+    its total strain since the start, or with ``since`` (a copy of an earlier field
+    checkpoint of the same run) the strain increment since that checkpoint; written to
+    ``out``/band.json and ``out``/<case>_dem_band.png (``band_since.json`` and
+    ``<case>_dem_band_since.png`` with ``since``)."""
     if case not in CASES:
         raise ValueError(f"case {case!r} unknown; accepted {sorted(CASES)}")
     cfg = {k: v for k, v in CASES[case].items() if k in ("nx", "ny", "width", "height")}
@@ -153,18 +168,41 @@ def band_of_run(case: str, out: str | Path, nx: int | None = None, ny: int | Non
     if len(u) != disc.ndofs:
         raise ValueError(f"{ck} has {len(u)} DOFs, the {cfg['nx']} x {cfg['ny']} mesh of {case} "
                          f"{disc.ndofs} (give the run's --nx and --ny)")
+    title, tag, extra = f"{case}: FE×DEM shear strain at t = {t:.3g}", "", {}
+    if since is not None:
+        with np.load(since) as z:
+            u0, t0 = z["u"], float(z["t"])
+        if len(u0) != len(u) or not t0 < t:
+            raise ValueError(f"since = {since}: a field of {len(u0)} DOFs at t = {t0}; accepted "
+                             f"an earlier checkpoint (t < {t}) of this run ({len(u)} DOFs)")
+        u = u - u0
+        title, tag, extra = (f"{case}: FE×DEM shear strain increment, t = {t0:.3g} to {t:.3g}",
+                             "_since", {"since": str(since), "t_since": t0})
     strain = disc.strain(u)[0]
-    res = {"case": case, "t": t, "step": step, **cfg, **localization(disc, strain)}
-    res["figure"] = str(band_figure(out / f"{case}_dem_band.png", disc, strain,
-                                    f"{case}: FE×DEM shear strain at t = {t:.3g}"))
-    res["json"] = str(write_json(out / "band.json", res))
+    res = {"case": case, "t": t, "step": step, **extra, **cfg, **localization(disc, strain)}
+    res["figure"] = str(band_figure(out / f"{case}_dem_band{tag}.png", disc, strain, title))
+    res["json"] = str(write_json(out / f"band{tag}.json", res))
     return res
 
 
+def dem_measure(scene, p0: float):
+    """The scene's curve quantities of an FE×DEM run and its step's dashpot overstress
+    (largest and weighted mean |σ_v| over the points, units of p0; 0 without a dashpot)."""
+    def measure(solver) -> dict:
+        rec = solver.records[-1] if solver.records else None
+        return {**scene.measure(solver),
+                "overstress_max": 0.0 if rec is None else rec.overstress / p0,
+                "overstress_mean": 0.0 if rec is None else rec.overstress_mean / p0}
+    return measure
+
+
 def _fexdem(report, curves, finals, *, case, scene, prepared, out, params, p0, backend, workers,
-            address, options, progress, resume, blocks, layout, modulus, xcol, ycol) -> None:
+            address, options, progress, resume, blocks, layout, modulus, xcol, ycol,
+            viscosity) -> None:
     """The FE×DEM run of ``run`` into ``report``, ``curves`` and ``finals``."""
     disc = scene.disc
+    newton = replace(DEM_NEWTON, viscosity=viscosity)
+    measure = dem_measure(scene, p0)
     t0 = time.perf_counter()
     cells = make_cells(backend, prepared, disc.npoints, options, workers, address, out / "cells",
                        progress, checkpointed_step(out / "cells") if resume else 0, blocks, layout)
@@ -174,22 +212,27 @@ def _fexdem(report, curves, finals, *, case, scene, prepared, out, params, p0, b
         outputs = analysis.Outputs(out, f"{case}_dem", curve_axes=(xcol, ycol),
                                    curve_each_step=True)
         if resume:
-            solver, start = FexdemSolver.resume(disc, mat, DEM_NEWTON, out / "cells", scene.stage)
+            solver, start = FexdemSolver.resume(disc, mat, newton, out / "cells", scene.stage)
             report["resumed_from_t"] = start[0]
             again = analysis.Resume(start, _rows_before(out / f"{outputs.name}_curve.csv", solver,
-                                                        scene.measure))
+                                                        measure))
         else:
-            solver, again = FexdemSolver(disc, mat, DEM_NEWTON, ckdir=out / "cells"), None
+            solver, again = FexdemSolver(disc, mat, newton, ckdir=out / "cells"), None
         startup = time.perf_counter() - t0
-        res = analysis.run(solver, [scene.stage], scene.measure, outputs, progress, resume=again)
+        res = analysis.run(solver, [scene.stage], measure, outputs, progress, resume=again)
         from dem.checkpoint import load
         st, dyn, _, _ = load(prepared)
         report["discs_per_cell"] = st.n
         report["cell_dem"] = {"kappa": dyn.law.kn, "mu": dyn.law.mu, "inertial": dyn.gdot_ref,
                               "c0": st.packing_fraction}
-        report["newton"] = {"tol": DEM_NEWTON.tol, "tol_stall": DEM_NEWTON.tol_stall,
-                            "max_iter": DEM_NEWTON.max_iter, "tangent": TANGENT,
-                            "probe": mat.probe}
+        report["newton"] = {"tol": newton.tol, "tol_stall": newton.tol_stall,
+                            "max_iter": newton.max_iter, "tangent": TANGENT,
+                            "probe": mat.probe, "viscosity": newton.viscosity}
+        report["dashpot"] = {
+            "viscosity_p0_time": viscosity,
+            "overstress_max_p0": max((r.overstress / p0 for r in solver.records), default=0.0),
+            "overstress_mean_max_p0": max((r.overstress_mean / p0 for r in solver.records),
+                                          default=0.0)}
         report["cell_options"] = {k: (v if np.isfinite(v) else "inf") for k, v in (
             (k, getattr(options, k)) for k in ("force_tol", "kinetic_tol", "relax_budget",
                                                "check_every", "max_increment"))}
@@ -267,12 +310,14 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
         backend: str = "serial", workers: int = 2, address: str | None = None,
         options: CellOptions = CELL_OPTIONS, progress: bool = True, resume: bool = False,
         blocks: int | None = None, layout: str = "interleaved", adaptive: float | None = None,
-        reference: str | Path | None = None, shadows: int = 0, **overrides) -> dict:
+        reference: str | Path | None = None, shadows: int = 0, viscosity: float = 0.0,
+        **overrides) -> dict:
     """Run ``case`` three ways (four with ``adaptive``, the tolerance of adaptive FE×DEM;
     ``shadows``: its shadow cells; ``reference``: a finished FE×DEM run's directory instead
     of running it) and write the report (see the module doc); returns it."""
     if case not in CASES:
         raise ValueError(f"case {case!r} unknown; accepted {sorted(CASES)}")
+    viscosity = dashpot.check_viscosity(viscosity)
     if adaptive is not None:
         model_choice(adaptive)               # a bad tolerance fails before the runs
     if not (isinstance(shadows, int) and shadows >= 0) or (shadows and adaptive is None):
@@ -293,7 +338,7 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
         _fexdem(report, curves, finals, case=case, scene=scene, prepared=prepared, out=out,
                 params=params, p0=p0, backend=backend, workers=workers, address=address,
                 options=options, progress=progress, resume=resume, blocks=blocks,
-                layout=layout, modulus=modulus, xcol=xcol, ycol=ycol)
+                layout=layout, modulus=modulus, xcol=xcol, ycol=ycol, viscosity=viscosity)
     else:
         _reference(report, curves, finals, case=case, scene=scene, cfg=cfg, prepared=prepared,
                    ref=Path(reference))

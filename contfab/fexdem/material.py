@@ -187,7 +187,10 @@ class FexdemSolver(Solver):
     converged step; :meth:`resume` rebuilds the solver from it, on cells made with
     ``resume=`` :func:`checkpointed_step` from the same ``ckdir``, and :meth:`run_stage` with the returned
     ``start`` finishes the stage: the same numbers as without the interruption (a trial
-    is a function of the committed state and the increment only).
+    is a function of the committed state and the increment only). A dashpot
+    (``NewtonOptions.viscosity``, :mod:`contfab.fem.dashpot`) has no state: the checkpoint
+    holds the cells' stress, the residual with its overstress, and the steps' overstress
+    in their records; a run may be resumed with another viscosity.
     """
 
     def __init__(self, disc, material: DemMaterial, options: NewtonOptions,
@@ -235,7 +238,8 @@ class FexdemSolver(Solver):
         dt_next = record.dt * o.grow if record.iterations <= o.easy_iter else record.dt
         c = self.committed
         records = [{"stage": r.stage, "t": r.t, "dt": r.dt, "residuals": r.residuals,
-                    "cuts": r.cuts, "extrapolated": r.extrapolated} for r in self.records]
+                    "cuts": r.cuts, "extrapolated": r.extrapolated, "overstress": r.overstress,
+                    "overstress_mean": r.overstress_mean} for r in self.records]
         with atomic_path(self.ckdir / FE_CHECKPOINT) as tmp:
             with open(tmp, "wb") as f:
                 np.savez(f, fe_step=len(self.records), stage=c.stage, t=c.t, dt_next=dt_next,
