@@ -62,6 +62,8 @@ def _run_case(args) -> int:
 def _dem_settings_args(p: argparse.ArgumentParser) -> None:
     """The sample and contact-law settings (defaults: :class:`dem.job.Settings`; an omitted
     flag is not 'given', so ``--resume`` takes the checkpoint's value)."""
+    from dem.contact_law import STYLES
+
     p.add_argument("--n", type=int, help="number of discs (default 1000)")
     p.add_argument("--seed", type=int, help="random seed of the sample (default 0)")
     p.add_argument("--radii",
@@ -89,6 +91,10 @@ def _dem_settings_args(p: argparse.ArgumentParser) -> None:
                    help="inertial number I setting the reference strain rate (default 1e-3)")
     p.add_argument("--e", type=float, help="restitution coefficient, (0, 1] (default 0.5)")
     p.add_argument("--kt-ratio", type=float, help="kt/kn (default 0.5)")
+    p.add_argument("--contact-style", dest="contact_style", choices=STYLES,
+                   help="contact law: spring-dashpot (default: restitution e for every pair, "
+                        "no tangential dashpot, arm r - δ/2) or hooke/history (LAMMPS's: one "
+                        "γn, tangential dashpot γn/2, arm r); see dem/contact_law.py")
     p.add_argument("--mu-roll", type=float, help="rolling resistance (default 0)")
     p.add_argument("--dt-fraction", type=float,
                    help="time step in units of sqrt(m_min/kn) (default 0.1)")
@@ -104,7 +110,7 @@ def _dem_settings_args(p: argparse.ArgumentParser) -> None:
 
 
 DEM_SETTINGS = ("n", "seed", "radii", "kappa", "mu", "mu_prep", "prep_rate", "prep_quench",
-                "inertial", "e", "kt_ratio", "mu_roll", "dt_fraction", "prep_max_steps", "allow_unrelaxed", "target_c0", "target_tries",
+                "inertial", "e", "kt_ratio", "mu_roll", "contact_style", "dt_fraction", "prep_max_steps", "allow_unrelaxed", "target_c0", "target_tries",
                 "checkpoint_every")
 
 
@@ -157,6 +163,8 @@ def _run_dem(args) -> None:
 # --------------------------------------------------------------------------- verify
 
 def _add_verify(p: argparse.ArgumentParser) -> None:
+    from dem.contact_law import STYLES
+
     sub = p.add_subparsers(dest="verify_command", required=True)
     lmp = sub.add_parser("lammps", help="the DEM and LAMMPS (bench extra) on the same samples "
                                         "and path (biaxial or simple-shear reversal): curves, "
@@ -193,6 +201,9 @@ def _add_verify(p: argparse.ArgumentParser) -> None:
     lmp.add_argument("--gamma-t", choices=("half", "zero"), default="zero",
                      help="LAMMPS tangential dashpot: none (default; the DEM's law has none) "
                           "or gamma_t = gamma_n/2 (LAMMPS's usual)")
+    lmp.add_argument("--contact-style", choices=STYLES, default=STYLES[0],
+                     help="the DEM's contact law (dem/contact_law.py): spring-dashpot "
+                          "(default) or hooke/history, LAMMPS's law with --gamma-t half")
     lmp.add_argument("--loose-target-c0", type=float,
                      help="loose samples: the seed's first realization with c0 <= this "
                           "(dem prepare --target-c0; default: the first realization)")
@@ -212,13 +223,14 @@ def _run_verify(args) -> int:
         loose["target_c0"] = args.loose_target_c0
     if args.prep_max_steps is not None:
         loose["prep_max_steps"] = args.prep_max_steps
-    Settings(n=args.n, kappa=args.kappa, inertial=args.inertial, **loose).validate()
+    Settings(n=args.n, kappa=args.kappa, inertial=args.inertial,
+             contact_style=args.contact_style, **loose).validate()
     try:
         res = compare(args.out, n=args.n, seeds=tuple(args.seeds), kinds=tuple(args.kinds),
                       loose=loose,
                       kappa=args.kappa, strain=args.strain, rows=args.rows,
                       inertial=args.inertial, gamma_t=args.gamma_t, path=args.path,
-                      shear=args.shear, remap=args.remap,
+                      shear=args.shear, remap=args.remap, contact_style=args.contact_style,
                       progress=lambda kind, seed: print(f"  {kind} seed {seed}: done",
                                                         flush=True))
     except LammpsUnavailable as exc:

@@ -21,12 +21,12 @@ from dataclasses import fields
 
 import numpy as np
 
-from dem.contact_law import ContactLaw
+from dem.contact_law import STYLES, ContactLaw
 from dem.fileio import atomic_path
 from dem.integrator import Dynamics
 from dem.neighbours import incidence
 from dem.rve import PathRun
-from dem.state import State
+from dem.state import HIST, State
 
 FORMAT = "contfab-dem-checkpoint-1"
 _RUN_ARRAYS = ("ref_su", "ref_h", "ref_acc")
@@ -41,12 +41,13 @@ class CheckpointError(ValueError):
 def dynamics_dict(dyn: Dynamics) -> dict:
     law = dyn.law
     return {"kn": law.kn, "kt_ratio": law.kt_ratio, "e": law.e, "mu": law.mu,
-            "mu_roll": law.mu_roll, "dt": dyn.dt, "skin": dyn.skin, "gdot_ref": dyn.gdot_ref,
+            "mu_roll": law.mu_roll, "style": law.style, "dt": dyn.dt, "skin": dyn.skin, "gdot_ref": dyn.gdot_ref,
             "tau_servo": dyn.tau_servo, "l_max": dyn.l_max}
 
 
 def dynamics_from(d: dict) -> Dynamics:
-    law = ContactLaw(kn=d["kn"], kt_ratio=d["kt_ratio"], e=d["e"], mu=d["mu"], mu_roll=d["mu_roll"])
+    law = ContactLaw(kn=d["kn"], kt_ratio=d["kt_ratio"], e=d["e"], mu=d["mu"], mu_roll=d["mu_roll"],
+                     style=d.get("style", STYLES[0]))  # written before the styles: the default
     return Dynamics(law, d["dt"], d["skin"], d["gdot_ref"], d["tau_servo"], d["l_max"])
 
 
@@ -89,6 +90,9 @@ def load(file: str | os.PathLike) -> tuple[State, Dynamics, PathRun | None, dict
         kin = np.array([mv[:, 0] @ kw["v"][:, 0], mv[:, 1] @ kw["v"][:, 1], mv[:, 0] @ kw["v"][:, 1]])
         kw["stress_contact"] = kw["stress"] + kin / vol
     kw.setdefault("stress_damping", np.zeros(3))  # written before the servo split it off
+    hist = kw["pair_hist"]
+    if hist.shape[1] < HIST:  # written before the tangential dashpot: its force is 0
+        kw["pair_hist"] = np.concatenate([hist, np.zeros((hist.shape[0], HIST - hist.shape[1]))], 1)
     kw["inc_ptr"], kw["inc"] = incidence(kw["pair_ij"], meta["n_pairs"], kw["radius"].shape[0])
     state = State(**kw, n_pairs=meta["n_pairs"], step=meta["step"], rng_state=meta["rng_state"],
                   rebuilds=meta["rebuilds"])

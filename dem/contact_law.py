@@ -37,11 +37,38 @@ Rolling resistance (off by default, μr = 0): a spring on the relative rotation
 Mr = kr ξr on i (-Mr on j), capped at |Mr| <= μr r_eff fn.
 
 Forces on i: f = -fn n + ft t, torque ℓi ft + Mr; on j: -f, torque ℓj ft - Mr.
+
+Two styles (``ContactLaw.style``) differ in three terms:
+
+* ``"spring-dashpot"`` (the default, everything above): the normal dashpot per pair,
+  γ = 2 β sqrt(m_eff kn), so every binary collision has the restitution e; no tangential
+  dashpot; arm ℓ = r - δ/2.
+* ``"hooke/history"``, LAMMPS's ``pair_style gran/hooke/history`` with ``limit_damping``
+  and its usual tangential dashpot: one normal damping rate γn for all pairs,
+  γ = m_eff γn with γn = 2 β sqrt(kn / (m̄/2)) (:func:`hooke_gamma_n`, m̄ the sample's
+  mean disc mass: a pair of mean mass has the ratio β, lighter pairs less, heavier more);
+  a tangential dashpot γt = m_eff γn / 2; arm ℓ = r. The tangential force is spring plus
+  dashpot, capped by Coulomb as a whole, and on sliding the spring is set so that the
+  sum sits on the cap (LAMMPS's rescaling of the shear history):
+
+      ft* = kt ξ* + γt vt,   ft = ft* if |ft*| <= μ fn,  else ft = ±μ fn, ξ = (ft - γt vt)/kt.
+
+  LAMMPS keeps ξ as a vector in the lab frame and projects it on the new tangent each
+  step; the scalar ξ here turns with the contact. In 2D the two differ by the factor
+  cos Δθ per step (Δθ the contact's rotation in the step), second order in Δθ; at the
+  first step of a contact they are equal.
+
+Dissipation of the tangential force with a dashpot: with ft = kt ξ + fdt (fdt = γt vt
+the dashpot's force, ξ after the slip) its trapezoidal work ½ (ft_old + ft) vt dt less the
+change of ½ kt ξ² is the slip term ½ kt (ξ_old + ξ)(ξ_trial - ξ) plus ½ (fdt_old + fdt)
+vt dt. A step in which the contact slides books the sum as friction, a sticking step (no
+slip term) as damping. (Split term by term, friction would turn negative where the
+dashpot alone exceeds the cap, |γt vt| > μ fn, and the spring is set against it.)
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 from numba import njit
@@ -86,12 +113,24 @@ def damping_ratio(e: float) -> float:
     return brentq(lambda b: restitution(b) - e, 0.0, 1e7, xtol=1e-15, rtol=1e-14)
 
 
+STYLES = ("spring-dashpot", "hooke/history")
+"""The contact-law styles (module doc); the first is the default."""
+
+
+def hooke_gamma_n(kn: float, beta: float, mean_mass: float) -> float:
+    """γn (1/time) of the ``hooke/history`` style: 2β sqrt(kn / (m̄/2)), the damping ratio β
+    for a pair of mean mass m̄."""
+    return 2.0 * beta * math.sqrt(kn / (0.5 * mean_mass))
+
+
 @dataclass(frozen=True)
 class ContactLaw:
     """Contact parameters (units: d = 1, ρ = 1, P0 = 1, so kn = κ in 2D).
 
     kn: normal stiffness (force per length of overlap), kt = kt_ratio · kn; e: restitution
-    of a binary collision; mu: Coulomb friction; mu_roll: rolling-resistance coefficient.
+    of a binary collision (of a pair of mean mass in the ``hooke/history`` style); mu:
+    Coulomb friction; mu_roll: rolling-resistance coefficient; style: one of
+    :data:`STYLES` (module doc).
     """
 
     kn: float
@@ -99,8 +138,12 @@ class ContactLaw:
     e: float = 0.5
     mu: float = 0.5
     mu_roll: float = 0.0
+    style: str = STYLES[0]
 
     def __post_init__(self):
+        if self.style not in STYLES:
+            raise ContactLawError(f"contact law: style = {self.style!r} unknown; accepted "
+                                  f"{', '.join(STYLES)}")
         checks = [("kn", self.kn, self.kn > 0, "(0, inf)"),
                   ("kt_ratio", self.kt_ratio, self.kt_ratio > 0, "(0, inf)"),
                   ("e", self.e, 0.0 < self.e <= 1.0, "(0, 1]"),
@@ -120,7 +163,24 @@ class ContactLaw:
         return damping_ratio(self.e)
 
     def with_friction(self, mu: float) -> "ContactLaw":
-        return ContactLaw(self.kn, self.kt_ratio, self.e, mu, self.mu_roll)
+        return replace(self, mu=mu)
+
+    @property
+    def arm_offset(self) -> float:
+        """a of the contact arm ℓ = r - a δ: ½ (``spring-dashpot``) or 0 (``hooke/history``)."""
+        return 0.5 if self.style == "spring-dashpot" else 0.0
+
+    @property
+    def tangential_damping(self) -> float:
+        """γt / γ of every pair: 0 (``spring-dashpot``) or ½ (``hooke/history``)."""
+        return 0.0 if self.style == "spring-dashpot" else 0.5
+
+    def gamma_n(self, mean_mass: float) -> float:
+        """γn of :func:`hooke_gamma_n` for ``hooke/history``; 0 for ``spring-dashpot`` (γ per
+        pair from β)."""
+        if self.style == "spring-dashpot":
+            return 0.0
+        return hooke_gamma_n(self.kn, self.beta, mean_mass)
 
     def kernel_params(self):
         """(kn, kt, β, μ, μr): the scalars the force kernel reads."""
@@ -134,17 +194,21 @@ def damping_coefficient(m_eff, kn, beta):
 
 
 @njit(cache=True)
-def contact_response(delta, delta_old, fd_old, vn, vt, wrel, xi_t, xi_r, gamma, r_eff, kn, kt,
-                     mu, mu_roll, dt):
-    """One contact update: (fn, ft, Mr, ξt, ξr, fd, damping, friction, rolling dissipation).
+def contact_response(delta, delta_old, fd_old, fdt_old, vn, vt, wrel, xi_t, xi_r, gamma,
+                     gamma_t, r_eff, kn, kt, mu, mu_roll, dt):
+    """One contact update: (fn, ft, Mr, ξt, ξr, fd, fdt, damping, friction, rolling
+    dissipation).
 
     Inputs as in the module docstring (δ > 0 overlap, vn, vt relative contact velocities,
-    wrel = ωj - ωi, ξ histories before the step, γ = :func:`damping_coefficient` and
-    r_eff of the pair, constant while it is listed); δ_old and fd_old = fn - kn δ are the
-    overlap and damping force of the previous step. Dissipations are the energies lost in
-    this step, as the trapezoidal work of the non-elastic force parts, which is how
-    velocity Verlet transmits work to the discs: damping ½ (fd_old + fd)(δ - δ_old),
-    friction ½ kt (ξ_old + ξ)(ξ_trial - ξ) (mean spring force times slip).
+    wrel = ωj - ωi, ξ histories before the step, γ (:func:`damping_coefficient`, or
+    m_eff γn), the tangential dashpot γt (0 without one) and r_eff of the pair, constant
+    while it is listed); δ_old, fd_old = fn - kn δ and fdt_old = γt vt are the overlap and
+    the normal and tangential damping forces of the previous step. Dissipations are the
+    energies lost in this step, as the trapezoidal work of the non-elastic force parts,
+    which is how velocity Verlet transmits work to the discs: damping ½ (fd_old + fd)(δ -
+    δ_old), friction ½ kt (ξ_old + ξ)(ξ_trial - ξ) (mean spring force times slip), and the
+    tangential dashpot's ½ (fdt_old + fdt) vt dt as damping in a sticking step, as friction
+    in a sliding one (module doc).
     δ_old = 0 marks a contact that closed during this step: it carried no force at the
     start of the step, when the overlap was δ - vn dt <= 0 (the drift of the half-step
     velocities), so the discs did the work ½ fn (-vn dt) on it, of which ½ kn δ² is
@@ -164,13 +228,17 @@ def contact_response(delta, delta_old, fd_old, vn, vt, wrel, xi_t, xi_r, gamma, 
     else:
         d_damp = 0.5 * (fd_old + fd) * (delta - delta_old)
     xi = xi_t + vt * dt
+    fdt = gamma_t * vt
+    ft_trial = kt * xi + fdt
     lim = mu * fn
     # sliding as selects, not a branch: whether a contact slides is data dependent
-    xi_slip = math.copysign(lim / kt, xi)
-    slides = kt * abs(xi) > lim
-    d_fric = 0.5 * kt * (xi_t + xi_slip) * (xi - xi_slip) if slides else 0.0
+    xi_slip = (math.copysign(lim, ft_trial) - fdt) / kt
+    slides = abs(ft_trial) > lim
+    d_dashpot = 0.5 * (fdt_old + fdt) * vt * dt
+    d_fric = 0.5 * kt * (xi_t + xi_slip) * (xi - xi_slip) + d_dashpot if slides else 0.0
+    d_damp += 0.0 if slides else d_dashpot
     xi = xi_slip if slides else xi
-    ft = kt * xi
+    ft = kt * xi + fdt
     mr = 0.0
     xr = 0.0
     d_roll = 0.0
@@ -183,4 +251,4 @@ def contact_response(delta, delta_old, fd_old, vn, vt, wrel, xi_t, xi_r, gamma, 
             d_roll = 0.5 * kr * (xi_r + xr_new) * (xr - xr_new)
             xr = xr_new
         mr = kr * xr
-    return fn, ft, mr, xi, xr, fd, d_damp, d_fric, d_roll
+    return fn, ft, mr, xi, xr, fd, fdt, d_damp, d_fric, d_roll

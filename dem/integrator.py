@@ -39,7 +39,8 @@ Time step: dt = f sqrt(m_min/kn). Velocity Verlet is stable for ω_max dt < 2; a
 with at most Z_MAX contacts, each coupling translation and rotation (a disc's tangential
 effective mass is m/3, so a contact's stiffest mode is max(2 kn, 6 kt)/m_min), has
 ω_max² <= Z_MAX max(2 kn, 6 kt)/m_min, and normal damping of ratio β lowers the limit
-by the factor sqrt(1+β²) - β. :func:`time_step` refuses f above that limit.
+by the factor sqrt(1+β²) - β (β the largest damping ratio of a contact mode,
+:func:`damping_ratio_bound`). :func:`time_step` refuses f above that limit.
 """
 from __future__ import annotations
 
@@ -72,20 +73,34 @@ class TimeStepError(ValueError):
     """Time step above the stability limit (the message names both)."""
 
 
-def stable_fraction(law: ContactLaw) -> float:
-    """Largest f = dt / sqrt(m_min/kn) that :func:`time_step` accepts (see module doc)."""
+def damping_ratio_bound(law: ContactLaw, heavy: float = 1.0) -> float:
+    """The largest damping ratio of a contact mode: β for ``spring-dashpot``; for
+    ``hooke/history`` (γ = m_eff γn, γt = γ/2) the heaviest pair's, with ``heavy`` =
+    m_max / m̄: normal β sqrt(heavy), tangential (effective mass m_eff/3, a disc's rim
+    under a tangential force) β sqrt(3 heavy kn/kt) / 2."""
     beta = law.beta
+    if law.style == "spring-dashpot":
+        return beta
+    return beta * math.sqrt(heavy) * max(1.0, 0.5 * math.sqrt(3.0 / law.kt_ratio))
+
+
+def stable_fraction(law: ContactLaw, heavy: float = 1.0) -> float:
+    """Largest f = dt / sqrt(m_min/kn) that :func:`time_step` accepts (see module doc;
+    β there is :func:`damping_ratio_bound`)."""
+    zeta = damping_ratio_bound(law, heavy)
     stiff = max(2.0, 6.0 * law.kt_ratio)
-    return 2.0 / math.sqrt(Z_MAX * stiff) * (math.sqrt(1.0 + beta * beta) - beta)
+    return 2.0 / math.sqrt(Z_MAX * stiff) * (math.sqrt(1.0 + zeta * zeta) - zeta)
 
 
-def time_step(law: ContactLaw, m_min: float, fraction: float = DT_FRACTION) -> float:
-    """dt = fraction · sqrt(m_min/kn), refused above the stability limit."""
-    limit = stable_fraction(law)
+def time_step(law: ContactLaw, m_min: float, fraction: float = DT_FRACTION,
+              heavy: float = 1.0) -> float:
+    """dt = fraction · sqrt(m_min/kn), refused above the stability limit (``heavy`` =
+    m_max / m̄ of the discs, for the ``hooke/history`` style's damping)."""
+    limit = stable_fraction(law, heavy)
     if not (math.isfinite(fraction) and 0.0 < fraction <= limit):
         raise TimeStepError(f"time step fraction {fraction} x sqrt(m_min/kn) is above the "
                             f"stability limit; accepted range (0, {limit:.4g}] for kt/kn = "
-                            f"{law.kt_ratio}, e = {law.e}")
+                            f"{law.kt_ratio}, e = {law.e}, style {law.style}")
     return fraction * math.sqrt(m_min / law.kn)
 
 
@@ -102,7 +117,7 @@ class Dynamics:
 
 
 def dynamics(law: ContactLaw, m_min: float, inertial: float, fraction: float = DT_FRACTION,
-             skin: float = 0.2, l_max: float | None = None) -> Dynamics:
+             skin: float = 0.2, l_max: float | None = None, heavy: float = 1.0) -> Dynamics:
     """Dynamics for a run at inertial number ``inertial`` (γ̇_ref = I in DEM units).
 
     The servo time constant follows κ (:func:`dem.servo.time_constant`) and its rate cap
@@ -113,7 +128,7 @@ def dynamics(law: ContactLaw, m_min: float, inertial: float, fraction: float = D
                          f"(quasi-static: I <= 1e-3)")
     if not (math.isfinite(skin) and skin > 0):
         raise ValueError(f"Verlet skin = {skin} out of range; accepted (0, inf) (units of d)")
-    return Dynamics(law, time_step(law, m_min, fraction), skin, inertial,
+    return Dynamics(law, time_step(law, m_min, fraction, heavy), skin, inertial,
                     time_constant(law.kn), l_max if l_max is not None else L_MAX_FACTOR * inertial)
 
 
@@ -140,14 +155,19 @@ class Control:
 # ----------------------------------------------------------------------------- kernels
 
 @njit(cache=True)
-def pair_constants(pair_ij, n_pairs, radius, mass, kn, beta):
-    """(n_pairs, 2): damping coefficient γ and r_eff = ri rj/(ri + rj) of every listed pair
-    (fixed while the list is; computed once per list instead of every step)."""
-    out = np.empty((max(n_pairs, 1), 2))
+def pair_constants(pair_ij, n_pairs, radius, mass, kn, beta, gamma_n, tangential):
+    """(n_pairs, 3): normal damping coefficient γ, r_eff = ri rj/(ri + rj) and tangential
+    damping coefficient γt = ``tangential`` · γ of every listed pair (fixed while the list
+    is; computed once per list instead of every step). γ = 2β sqrt(m_eff kn) if
+    ``gamma_n`` = 0, else m_eff γn (:class:`dem.contact_law.ContactLaw` styles)."""
+    out = np.empty((max(n_pairs, 1), 3))
     for q in range(n_pairs):
         i, j = pair_ij[q, 0], pair_ij[q, 1]
-        out[q, 0] = damping_coefficient(mass[i] * mass[j] / (mass[i] + mass[j]), kn, beta)
+        m_eff = mass[i] * mass[j] / (mass[i] + mass[j])
+        gamma = m_eff * gamma_n if gamma_n > 0.0 else damping_coefficient(m_eff, kn, beta)
+        out[q, 0] = gamma
         out[q, 1] = radius[i] * radius[j] / (radius[i] + radius[j])
+        out[q, 2] = tangential * gamma
     return out
 
 
@@ -156,8 +176,10 @@ NPAIR_SUMS = 13  # sxx, syy, sxy, Mxx, Myy, Mxy, Myx, d_damp, d_fric, d_roll, da
 
 @njit(cache=True, parallel=True, fastmath=FASTMATH, error_model="numpy")
 def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair_hist, pair_f,
-                n_pairs, kn, kt, mu, mu_roll, dt):
+                n_pairs, kn, kt, mu, mu_roll, arm, dt):
     """Step 5: contact forces of every listed pair; returns the summed (NPAIR_SUMS,) terms.
+
+    ``arm``: a of the contact arm ℓ = r - a δ (:attr:`dem.contact_law.ContactLaw.arm_offset`).
 
     Writes pair_f[q] = (fx, fy, torque on i, torque on j) with (fx, fy) the force on i,
     updates the histories (by dt; dt = 0 evaluates without advancing ξ), and sums
@@ -167,8 +189,8 @@ def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair
     ``pair_const`` is :func:`pair_constants` of the list. A contact that opened during
     the step (listed with δ_old > 0, now δ <= 0) is booked like every step, as the
     trapezoidal work of its last forces over this step's motion, ½ fn_old (δ - δ_old) on
-    the normal, ½ ft_old vt dt and ½ Mr_old (ωj - ωi) dt on the tangential and rolling
-    springs, plus the energy they stored (lost with the contact).
+    the normal, ½ ft_old vt dt (spring and dashpot) and ½ Mr_old (ωj - ωi) dt on the
+    tangential and rolling springs, plus the energy they stored (lost with the contact).
 
     Each chunk of pairs is done in two loops: the first finds its live pairs (in contact
     now or at the last step) and zeroes every pair's forces, the second evaluates the live
@@ -214,7 +236,7 @@ def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair
             nx, ny = lx * inv, ly * inv
             tx, ty = -ny, nx
             delta = rs - dist
-            li, lj = ri - 0.5 * delta, rj - 0.5 * delta
+            li, lj = ri - arm * delta, rj - arm * delta
             spin = omega[i] * li + omega[j] * lj
             wx = L00 * lx + L01 * ly + v[j, 0] - v[i, 0] - spin * tx
             wy = L10 * lx + L11 * ly + v[j, 1] - v[i, 1] - spin * ty
@@ -226,20 +248,22 @@ def pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair
                 # energy stored in the springs is lost
                 d0, fd0, x0, r0 = pair_hist[q, 3], pair_hist[q, 2], pair_hist[q, 0], pair_hist[q, 1]
                 kr = kt * pair_const[q, 1] * pair_const[q, 1]
-                a7 += 0.5 * (kn * d0 + fd0) * (delta - d0) + 0.5 * kn * d0 * d0
+                a7 += (0.5 * (kn * d0 + fd0) * (delta - d0) + 0.5 * kn * d0 * d0
+                       + 0.5 * pair_hist[q, 4] * vt * dt)
                 a8 += 0.5 * kt * x0 * (vt * dt + x0)
                 a9 += 0.5 * kr * r0 * ((omega[j] - omega[i]) * dt + r0)
-                for a in range(4):
+                for a in range(5):
                     pair_hist[q, a] = 0.0
                 continue
-            fn, ft, mr, xi, xr, fd, dd, dfr, drl = contact_response(
-                delta, pair_hist[q, 3], pair_hist[q, 2], vn, vt, omega[j] - omega[i],
-                pair_hist[q, 0], pair_hist[q, 1], pair_const[q, 0], pair_const[q, 1], kn, kt,
-                mu, mu_roll, dt)
+            fn, ft, mr, xi, xr, fd, fdt, dd, dfr, drl = contact_response(
+                delta, pair_hist[q, 3], pair_hist[q, 2], pair_hist[q, 4], vn, vt,
+                omega[j] - omega[i], pair_hist[q, 0], pair_hist[q, 1], pair_const[q, 0],
+                pair_const[q, 2], pair_const[q, 1], kn, kt, mu, mu_roll, dt)
             pair_hist[q, 0] = xi
             pair_hist[q, 1] = xr
             pair_hist[q, 2] = fd
             pair_hist[q, 3] = delta
+            pair_hist[q, 4] = fdt
             fx = -fn * nx + ft * tx
             fy = -fn * ny + ft * ty
             pair_f[q, 0] = fx
@@ -433,7 +457,7 @@ def _end_step(acc, h, L, dt, ps, ks, stress, stress_c):
 
 
 @njit(cache=True)
-def advance_kernel(nsteps, mid_step, k0, ktotal, dt, kn, kt, mu, mu_roll, skin, r_max,
+def advance_kernel(nsteps, mid_step, k0, ktotal, dt, kn, kt, mu, mu_roll, arm, skin, r_max,
                    gdot_ref, tau_servo, l_max, radius, pair_const, mass, inv_mass, inv_inertia,
                    s, v, omega, force, torque, s_ref, h, h_ref, L, l_int, pair_ij, pair_shift,
                    pair_hist, pair_f, n_pairs, row_ptr, inc_ptr, inc, rate, controlled,
@@ -460,7 +484,7 @@ def advance_kernel(nsteps, mid_step, k0, ktotal, dt, kn, kt, mu, mu_roll, skin, 
             return 0, NEED_REBUILD
     for k in range(nsteps):
         ps = pair_forces(h, L, s, v, omega, radius, pair_const, pair_ij, pair_shift, pair_hist,
-                         pair_f, n_pairs, kn, kt, mu, mu_roll, dt)
+                         pair_f, n_pairs, kn, kt, mu, mu_roll, arm, dt)
         _contact_stress(h, ps, stress_c, stress_d, stiff)
         last = k + 1 == nsteps
         L_end[:, :] = L
@@ -490,8 +514,10 @@ class DivergenceError(RuntimeError):
 
 
 def _pair_constants(state: State, dyn: Dynamics) -> np.ndarray:
-    return pair_constants(state.pair_ij, state.n_pairs, state.radius, state.mass, dyn.law.kn,
-                          dyn.law.beta)
+    law = dyn.law
+    return pair_constants(state.pair_ij, state.n_pairs, state.radius, state.mass, law.kn,
+                          law.beta, law.gamma_n(float(np.mean(state.mass))),
+                          law.tangential_damping)
 
 
 def evaluate_forces(state: State, dyn: Dynamics) -> State:
@@ -504,7 +530,8 @@ def _evaluate_forces(state: State, dyn: Dynamics) -> State:
     kn, kt, _, mu, mu_roll = dyn.law.kernel_params()
     ps = pair_forces(state.h, state.L, state.s, state.v, state.omega, state.radius,
                      _pair_constants(state, dyn), state.pair_ij, state.pair_shift,
-                     state.pair_hist, state.pair_f, state.n_pairs, kn, kt, mu, mu_roll, 0.0)
+                     state.pair_hist, state.pair_f, state.n_pairs, kn, kt, mu, mu_roll,
+                     dyn.law.arm_offset, 0.0)
     _contact_stress(state.h, ps, state.stress_contact, state.stress_damping, state.stiff)
     none = np.zeros((2, 2))
     ks = disc_pass(state.pair_f, state.row_ptr, state.inc_ptr, state.inc, state.force,
@@ -536,7 +563,7 @@ def _advance(state: State, dyn: Dynamics, nsteps: int, control: Control) -> Stat
     while done_total < nsteps:
         done, status = advance_kernel(
             nsteps - done_total, mid, done_total, nsteps, dyn.dt, kn, kt, mu, mu_roll,
-            dyn.skin, r_max, dyn.gdot_ref, dyn.tau_servo, dyn.l_max, state.radius, const,
+            dyn.law.arm_offset, dyn.skin, r_max, dyn.gdot_ref, dyn.tau_servo, dyn.l_max, state.radius, const,
             state.mass, state.inv_mass, state.inv_inertia, state.s, state.v, state.omega,
             state.force, state.torque, state.s_ref, state.h, state.h_ref, state.L, state.L_int,
             state.pair_ij, state.pair_shift, state.pair_hist, state.pair_f, state.n_pairs,

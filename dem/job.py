@@ -1,7 +1,9 @@
 """The DEM jobs behind ``contfab dem prepare`` and ``contfab dem run``.
 
 ``prepare_job``: a random gas of N discs compressed to P0 with μ_prep and relaxed
-(:mod:`dem.prepare`), friction then switched to μ; written as one checkpoint file.
+(:mod:`dem.prepare`), friction then switched to μ; written as one checkpoint file. The
+preparation runs the default contact-law style whatever ``contact_style`` is (the style
+is the loading path's), so a seed gives one sample for every style.
 
 ``run_job``: a loading path on a sample (prepared here, or read from a checkpoint:
 a prepared sample, which may be reused for many paths, or a mid-run checkpoint, which
@@ -37,9 +39,9 @@ from pathlib import Path as FsPath
 import numpy as np
 
 from dem import checkpoint
-from dem.contact_law import ContactLaw
+from dem.contact_law import STYLES, ContactLaw
 from dem.fileio import write_csv, write_json
-from dem.integrator import DT_FRACTION, dynamics
+from dem.integrator import DT_FRACTION, Dynamics, dynamics, time_step
 from dem.servo import L_MAX_FACTOR
 from dem.particles import parse_radii, sample_radii
 from dem.paths import load_path
@@ -73,6 +75,7 @@ class Settings:
     e: float = 0.5
     kt_ratio: float = 0.5
     mu_roll: float = 0.0
+    contact_style: str = STYLES[0]
     dt_fraction: float = DT_FRACTION
     skin: float = 0.2
     prep_rate: float = 1e-2
@@ -86,7 +89,8 @@ class Settings:
 
     def law(self, mu: float | None = None) -> ContactLaw:
         return ContactLaw(kn=self.kappa, kt_ratio=self.kt_ratio, e=self.e,
-                          mu=self.mu if mu is None else mu, mu_roll=self.mu_roll)
+                          mu=self.mu if mu is None else mu, mu_roll=self.mu_roll,
+                          style=self.contact_style)
 
     def validate(self) -> None:
         """Raise ValueError naming the first bad value and its accepted range."""
@@ -158,13 +162,13 @@ def _prepare_realization(settings: Settings, rng: np.random.Generator, progress:
     radius = sample_radii(parse_radii(settings.radii), settings.n, rng)
     state = random_gas(radius, settings.c_gas, rng)
     mu_prep = settings.mu if settings.mu_prep is None else settings.mu_prep
-    dyn_prep = dynamics(settings.law(mu_prep), state.mass.min(), settings.prep_rate,
+    dyn_prep = dynamics(_prep_law(settings, mu_prep), state.mass.min(), settings.prep_rate,
                         settings.dt_fraction, settings.skin, l_max=settings.prep_rate)
     bar = _bar(progress, None, "prepare (steps)")
     state, info = compress_to_pressure(state, dyn_prep, max_steps=settings.prep_max_steps,
                                        progress=_prep_progress(bar))
     if mu_prep > settings.mu and info.relaxed:
-        state, info = lower_friction(state, dyn_prep, settings.law(), info,
+        state, info = lower_friction(state, dyn_prep, _prep_law(settings), info,
                                      max_steps=settings.prep_max_steps,
                                      progress=_prep_progress(bar),
                                      quench_every=settings.prep_quench)
@@ -180,8 +184,25 @@ def _prepare_realization(settings: Settings, rng: np.random.Generator, progress:
                                    f"--prep-max-steps), or --allow-unrelaxed to use it anyway")
         warnings.warn(f"UNRELAXED SAMPLE used (allow_unrelaxed): {what}", UnrelaxedWarning,
                       stacklevel=2)
-    dyn = replace(switch_friction(dyn_prep, settings.mu), **_rates(settings.inertial))
+    dyn = loading_dynamics(switch_friction(dyn_prep, settings.mu), state, settings.contact_style,
+                        settings.inertial)
     return state, dyn, info
+
+
+def _prep_law(settings: Settings, mu: float | None = None) -> ContactLaw:
+    """The preparation's contact law: the settings' with the default style, whatever the
+    test's, so that one seed gives the same sample for every style."""
+    return replace(settings.law(mu), style=STYLES[0])
+
+
+def loading_dynamics(dyn: Dynamics, state, style: str, inertial: float) -> Dynamics:
+    """``dyn`` with the contact-law ``style`` and the rates of inertial number ``inertial``
+    for the loading path; its time step checked against the style's stability limit."""
+    out = replace(dyn, law=replace(dyn.law, style=style), **_rates(inertial))
+    m_min = float(state.mass.min())
+    time_step(out.law, m_min, out.dt / math.sqrt(m_min / out.law.kn),
+              float(state.mass.max() / state.mass.mean()))
+    return out
 
 
 class UnrelaxedWarning(UserWarning):
@@ -213,7 +234,8 @@ def prepare_job(settings: Settings, out: str | FsPath, progress: bool = True) ->
     return out
 
 
-RESUME_FREE = {"checkpoint_every": "any", "allow_unrelaxed": "any", "inertial": "prepared"}
+RESUME_FREE = {"checkpoint_every": "any", "allow_unrelaxed": "any", "inertial": "prepared",
+               "contact_style": "prepared"}
 """Settings a resumed run may change: on any checkpoint ("any"), or only on a prepared
 sample, where the loading path has not started ("prepared")."""
 
@@ -244,7 +266,8 @@ def resumed_settings(file, saved: dict, state, dyn, mid_run: bool, given: dict) 
     if "mu" in saved and ran["mu_prep"] is None:
         ran["mu_prep"] = saved["mu"]
     ran.update(n=state.n, kappa=law.kn, mu=law.mu, e=law.e, kt_ratio=law.kt_ratio,
-               mu_roll=law.mu_roll, skin=dyn.skin, inertial=dyn.gdot_ref)
+               mu_roll=law.mu_roll, contact_style=law.style, skin=dyn.skin,
+               inertial=dyn.gdot_ref)
     ran["allow_unrelaxed"] = False          # an opt-in of this run, not the checkpoint's
     if ran["dt_fraction"] is None:
         ran["dt_fraction"] = dyn.dt / math.sqrt(float(state.mass.min()) / law.kn)
@@ -297,7 +320,7 @@ def run_job(path_name: str, settings: Settings, out_dir: str | FsPath, resume: s
                                        f"or --allow-unrelaxed to use it anyway")
             warnings.warn(f"--resume {resume}: {w}", UnrelaxedWarning, stacklevel=2)
         if run is None:                      # a prepared sample: start the path on it
-            dyn = replace(dyn, **_rates(ran["inertial"]))
+            dyn = loading_dynamics(dyn, state, ran["contact_style"], ran["inertial"])
         source = f"checkpoint {resume}"
     else:
         state, dyn, info = prepare_sample(settings, progress)

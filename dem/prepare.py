@@ -222,7 +222,8 @@ def lower_friction(state: State, dyn: Dynamics, law: ContactLaw, info: PrepInfo,
     quenched = (replace(law, e=E_SWITCH), quench_every,
                 QUENCH_FORCE_TOL if quench_every > 0 else FORCE_TOL)
     for stage_law, quench, force_tol in (quenched, (law, 0, FORCE_TOL)):
-        time_step(stage_law, float(state.mass.min()), fraction)
+        time_step(stage_law, float(state.mass.min()), fraction,
+                  float(state.mass.max() / state.mass.mean()))
         state, more = compress_to_pressure(state, replace(dyn, law=stage_law), p0,
                                            max_steps - out.steps, progress, quench, force_tol)
         out = replace(more, steps=out.steps + more.steps, c_compressed=out.c_compressed)

@@ -18,8 +18,9 @@ Cell: h, h_ref (at the last rebuild), L (2, 2) current velocity gradient,
     L_int (4,) servo integral (a strain rate per L component, see :mod:`dem.servo`).
 Pairs (capacity C, the first ``n_pairs`` valid, i < j, sorted by i, ``row_ptr`` (N+1)):
     pair_ij (C, 2) int64, pair_shift (C, 2) int64 image of j (l = h (s_j + shift - s_i)),
-    pair_hist (C, HIST) (ξt, ξr, fd, δ): tangential and rolling spring elongations, and the
-    damping force and overlap of the last step (for the dissipation of the next one),
+    pair_hist (C, HIST) (ξt, ξr, fd, δ, fdt): tangential and rolling spring elongations,
+    and the normal damping force, overlap and tangential damping force of the last step
+    (for the dissipation of the next one),
     pair_f (C, 4) (fx, fy on i; torque on i; torque on j).
 Incidence (for gathering forces per disc without scattered writes): inc_ptr (N+1),
     inc (C): the pairs q in which the disc is j (its pairs as i are its rows of the list).
@@ -38,7 +39,7 @@ import numpy as np
 # indices into State.acc
 TIME, TAU, EXX, EYY, EXY, WORK, D_DAMP, D_FRIC, D_ROLL = range(9)
 NACC = 9
-HIST = 4
+HIST = 5
 ACC_NAMES = ("time", "tau", "eps_xx", "eps_yy", "eps_xy", "work", "d_damp", "d_fric", "d_roll")
 
 

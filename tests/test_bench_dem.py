@@ -20,8 +20,8 @@ def test_lammps_input_carries_the_reference_system(packing_frictional, tmp_path)
     import numpy as np
 
     from conftest import make_dynamics
-    from contfab.bench.dem_lammps import commands, normal_damping, write_data
-    from dem.contact_law import restitution
+    from contfab.bench.dem_lammps import commands, write_data
+    from dem.contact_law import hooke_gamma_n, restitution
 
     st = packing_frictional.copy()
     st.h[1, 0] = 0.0
@@ -33,7 +33,7 @@ def test_lammps_input_carries_the_reference_system(packing_frictional, tmp_path)
     # a mean pair gets our damping ratio, hence the restitution e = 0.55
     m_eff = 0.5 * st.mass.mean()
     assert math.isclose(restitution(gamma_n / (2 * math.sqrt(kn / m_eff))), 0.55, rel_tol=1e-12)
-    assert gamma_n == normal_damping(kn, dyn.law.beta, st.mass.mean())
+    assert gamma_n == hooke_gamma_n(kn, dyn.law.beta, st.mass.mean())
     assert f"timestep {dyn.dt!r}" in cmds and f"neighbor {dyn.skin!r} bin" in cmds
     assert any(c.startswith("fix axial all deform 1 y erate -0.001") for c in cmds)
     f = tmp_path / "s.data"

@@ -6,7 +6,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from dem import neighbours
-from dem.contact_law import ContactLaw, ContactLawError, damping_ratio, restitution
+from dem.contact_law import STYLES, ContactLaw, ContactLawError, damping_ratio, restitution
 from dem.integrator import Dynamics, advance, evaluate_forces, stable_fraction, time_step
 from dem.state import D_DAMP, D_FRIC, D_ROLL, new_state
 
@@ -50,19 +50,22 @@ def _kinetic(st):
     return 0.5 * float(np.sum(st.mass[:, None] * st.v**2) + np.sum(st.omega**2 / st.inv_inertia))
 
 
+@pytest.mark.parametrize("style", STYLES)
 @pytest.mark.parametrize("e", [0.5, 0.1, 0.01])
 @pytest.mark.parametrize("fraction", [0.04, 0.01])
 @pytest.mark.parametrize("offset, mu, mu_roll", [(0.0, 0.5, 0.0), (0.4, 0.1, 0.1), (0.6, 10.0, 0.0)])
-def test_collision_books_its_kinetic_energy_loss_as_dissipation(e, fraction, offset, mu, mu_roll):
+def test_collision_books_its_kinetic_energy_loss_as_dissipation(e, fraction, offset, mu, mu_roll,
+                                                                 style):
     # head-on and oblique (sliding, rolling resistance, sticking) collisions of spinning
     # discs: the contact closes and opens mid-step. Booked damping + friction + rolling
     # dissipation = the kinetic energy lost, to 1e-4 (measured <= 3e-5; 1e-12 head-on).
-    # Booking the onset from δ_old = 0 instead of the real gap missed up to 30 % at e = 0.01
-    law = ContactLaw(kn=1e4, e=e, mu=mu, mu_roll=mu_roll)
+    # Booking the onset from δ_old = 0 instead of the real gap missed up to 30 % at e = 0.01.
+    # With the tangential dashpot (hooke/history) its work is booked as damping
+    law = ContactLaw(kn=1e4, e=e, mu=mu, mu_roll=mu_roll, style=style)
     st = two_discs([0.5, 0.3], [[4.0, 5.0], [4.8137, 5.0 + offset]],
                    [[1.0, 0.3], [-1.0, -0.2]], (3.0, -5.0))
     k0 = _kinetic(st)
-    fraction = min(fraction, stable_fraction(law))
+    fraction = min(fraction, stable_fraction(law, float(st.mass.max() / st.mass.mean())))
     st, _ = run(st, law, fraction, 0.3)
     assert st.n_pairs == 0 or not np.any(st.pair_hist[:st.n_pairs])  # the discs separated
     lost = k0 - _kinetic(st)
@@ -70,10 +73,12 @@ def test_collision_books_its_kinetic_energy_loss_as_dissipation(e, fraction, off
     assert lost > 0.05 * k0 and abs(booked / lost - 1.0) < 1e-4
 
 
-def test_tangential_force_never_exceeds_coulomb():
+@pytest.mark.parametrize("style", STYLES)
+def test_tangential_force_never_exceeds_coulomb(style):
+    # spring (and dashpot, hooke/history: its force is the history's last column) together
     rng = np.random.default_rng(1)
     for mu in (0.0, 0.3, 1e9):
-        law = ContactLaw(kn=1e4, e=0.6, mu=mu)
+        law = ContactLaw(kn=1e4, e=0.6, mu=mu, style=style)
         for _ in range(5):
             st = two_discs([0.5, 0.4], [[4.0, 5.0], [4.85, 5.0 + rng.uniform(-0.5, 0.5)]],
                            rng.normal(size=(2, 2)), rng.normal(size=2) * 5)
@@ -85,8 +90,10 @@ def test_tangential_force_never_exceeds_coulomb():
                 f = st.pair_f[0, :2]
                 l = st.positions()[1] - st.positions()[0]
                 n = l / np.linalg.norm(l)
-                fn, ft = -f @ n, law.kt * st.pair_hist[0, 0]
-                assert fn >= 0.0 and abs(ft) <= mu * fn * (1 + 1e-12)
+                fn, ft = -f @ n, law.kt * st.pair_hist[0, 0] + st.pair_hist[0, 4]
+                # on the bound to rounding of the spring and dashpot parts
+                bound = mu * fn * (1 + 1e-12) + 1e-12 * abs(st.pair_hist[0, 4])
+                assert fn >= -1e-15 and abs(ft) <= bound
                 assert abs(f @ np.array([-n[1], n[0]]) - ft) <= 1e-12 * (abs(fn) + abs(ft) + 1)
 
 
@@ -113,9 +120,10 @@ def test_history_turns_with_a_rigidly_rotating_pair():
         st.omega[:] = w
         from dem.integrator import pair_constants, pair_forces
         kn, kt, beta, mu, mr = law.kernel_params()
-        const = pair_constants(st.pair_ij, st.n_pairs, st.radius, st.mass, kn, beta)
+        const = pair_constants(st.pair_ij, st.n_pairs, st.radius, st.mass, kn, beta, 0.0, 0.0)
         pair_forces(st.h, st.L, st.s, st.v, st.omega, st.radius, const, st.pair_ij,
-                    st.pair_shift, st.pair_hist, st.pair_f, st.n_pairs, kn, kt, mu, mr, dyn.dt)
+                    st.pair_shift, st.pair_hist, st.pair_f, st.n_pairs, kn, kt, mu, mr,
+                    law.arm_offset, dyn.dt)
     f = st.pair_f[0, :2]
     n = np.array([math.cos(angle), math.sin(angle)])
     ft = f @ np.array([-n[1], n[0]])
@@ -142,6 +150,27 @@ def test_lone_disc_keeps_its_momentum_exactly():
 def test_bad_contact_parameters_are_refused_with_range(kw, word):
     with pytest.raises(ContactLawError, match=word):
         ContactLaw(**kw)
+
+
+def test_an_unknown_contact_style_is_refused_with_the_styles():
+    with pytest.raises(ContactLawError, match="style = 'hertz' unknown; accepted spring-dashpot, "
+                                              "hooke/history"):
+        ContactLaw(kn=1.0, style="hertz")
+
+
+@pytest.mark.parametrize("r", [[0.5, 0.5], [0.5, 0.2]])
+def test_hooke_history_damps_every_pair_at_one_rate(r):
+    # LAMMPS's normal dashpot m_eff γn with γn = 2β sqrt(kn/(m̄/2)): a pair of the mean mass
+    # m̄ has the restitution e; another pair the clamped law's e at the ratio
+    # β sqrt(m_eff/(m̄/2)) (0.607 against e = 0.5 for the discs of radii 0.5 and 0.2)
+    law = ContactLaw(kn=1e4, e=0.5, mu=0.5, style="hooke/history")
+    st = two_discs(r, [[4.0, 5.0], [4.1 + sum(r), 5.0]], [[1.0, 0.0], [-1.0, 0.0]])
+    m_eff = st.mass[0] * st.mass[1] / st.mass.sum()
+    expected = restitution(law.beta * math.sqrt(m_eff / (0.5 * st.mass.mean())))
+    st, _ = run(st, law, 0.02, 0.3)
+    e_measured = (st.v[1, 0] - st.v[0, 0]) / 2.0
+    assert abs(e_measured / expected - 1.0) < 0.01
+    assert (expected == 0.5) if r[0] == r[1] else abs(expected - 0.5) > 0.05
 
 
 def test_damping_ratio_inverts_restitution():

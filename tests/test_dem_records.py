@@ -60,6 +60,21 @@ def test_resume_runs_and_records_the_checkpoints_settings(sample, tmp_path, caps
     assert not (tmp_path / "o3").exists()
 
 
+def test_a_contact_style_runs_on_a_prepared_sample_and_is_recorded(sample, tmp_path, capsys):
+    out = tmp_path / "h"
+    assert main(["dem", "run", str(sample / "short.toml"), "--out", str(out), "--resume",
+                 str(sample / "s.npz"), "--contact-style", "hooke/history"]) == 0
+    meta = json.loads((out / "history.json").read_text())
+    assert meta["settings"]["contact_style"] == "hooke/history"
+    assert meta["dynamics"]["style"] == "hooke/history"
+    # a run under way keeps the law it started with
+    assert main(["dem", "run", str(sample / "short.toml"), "--out", str(tmp_path / "h2"),
+                 "--resume", str(out / "checkpoint.npz"), "--contact-style",
+                 "spring-dashpot"]) == 2
+    assert "contact_style = 'hooke/history'" in capsys.readouterr().err
+    assert not (tmp_path / "h2").exists()
+
+
 def test_unrelaxed_preparation_is_an_error_unless_allowed_and_then_recorded(tmp_path, capsys):
     args = ["--n", "60", "--kappa", "1e3", "--inertial", "1e-2", "--prep-max-steps", "1000"]
     assert main(["dem", "prepare", "--out", str(tmp_path / "s.npz"), *args]) == 2

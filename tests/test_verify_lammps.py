@@ -279,3 +279,57 @@ def test_measuring_lammps_contacts_leaves_its_trajectory_unchanged(engine):
 
     for a, b in zip(final(True), final(False)):
         assert np.array_equal(a, b)
+
+
+def test_the_hooke_history_style_is_lammps_gran_hooke_history():
+    """The DEM's ``hooke/history`` contact style and LAMMPS's ``gran/hooke/history`` (one γn,
+    γt = γn/2, ``limit_damping``) on one state with random velocities and spins (both
+    dashpots at work; the cell at rest): the same force and torque on every disc at the
+    start (zero tangential histories; velocities small enough that LAMMPS's setup, which
+    zeroes a capped contact's force while its history is zero, caps none), and after 20
+    steps of both integrators with the springs loaded and contacts sliding (the spring
+    turned with the contact here, projected in LAMMPS: equal to second order in the
+    contact's rotation per step). The default style differs by a tenth of the force."""
+    _lammps_or_skip()
+    from dataclasses import replace
+
+    from contfab.verify.lammps_engine import LammpsSample
+    from dem.integrator import advance, evaluate_forces
+
+    state, dyn = _small_sample("loose", 1)
+    rng = np.random.default_rng(5)
+    state.v[:] = rng.normal(size=state.v.shape) * 0.002
+    state.omega[:] = rng.normal(size=state.n) * 0.004
+    state.L[:] = 0.0
+    state.pair_hist[:] = 0.0
+    eng = LammpsSample(state.copy(), dyn, 20, "half", ["fix integrate all nve/sphere disc"])
+
+    def lammps_forces():
+        return (np.array(eng.lmp.numpy.extract_atom("f")[:eng.n, :2]),
+                np.array(eng.lmp.numpy.extract_atom("torque")[:eng.n, 2]))
+
+    try:
+        start = lammps_forces()
+        eng.run_to(20)
+        after = lammps_forces()
+    finally:
+        eng.close()
+    scale = np.abs(start[0]).max()
+
+    def error(st, ref):
+        return max(np.abs(st.force - ref[0]).max(), np.abs(st.torque - ref[1]).max()) / scale
+
+    for style in ("hooke/history", "spring-dashpot"):
+        law = replace(dyn.law, style=style)
+        st = evaluate_forces(state.copy(), replace(dyn, law=law))
+        e0 = error(st, start)
+        advance(st, replace(dyn, law=law), 20)
+        e20 = error(st, after)
+        n = st.n_pairs
+        fn = law.kn * st.pair_hist[:n, 3] + st.pair_hist[:n, 2]
+        ft = law.kt * st.pair_hist[:n, 0] + st.pair_hist[:n, 4]
+        sliding = np.sum((st.pair_hist[:n, 3] > 0) & (np.abs(ft) >= law.mu * fn * (1 - 1e-9)))
+        if style == "hooke/history":
+            assert e0 < 1e-10 and e20 < 1e-7 and sliding >= 3
+        else:
+            assert e0 > 1e-2 and e20 > 1e-2

@@ -28,7 +28,6 @@ timed the same way as the DEM's ``advance``.
 from __future__ import annotations
 
 import ctypes
-import math
 import os
 import sys
 import tempfile
@@ -36,6 +35,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from dem.contact_law import hooke_gamma_n
 
 PDAMP_STEPS = 1000
 """Barostat time constant of the LAMMPS run, in time steps (stable on this packing)."""
@@ -88,15 +89,10 @@ def write_data(state, file: str | os.PathLike) -> None:
     Path(file).write_text("\n".join(lines) + "\n")
 
 
-def normal_damping(kn: float, beta: float, mean_mass: float) -> float:
-    """LAMMPS's γn (1/time) giving a mean pair our damping ratio β: 2β sqrt(kn / (m̄/2))."""
-    return 2.0 * beta * math.sqrt(kn / (0.5 * mean_mass))
-
-
 def commands(system: dict, state, dyn, data_file: str) -> list[str]:
     """The LAMMPS input for the benchmark (see the module doc)."""
     law = dyn.law
-    gamma_n = normal_damping(law.kn, law.beta, float(np.mean(state.mass)))
+    gamma_n = hooke_gamma_n(law.kn, law.beta, float(np.mean(state.mass)))
     return ["units lj", "dimension 2", "atom_style sphere", "boundary p p p",
             "comm_modify vel yes", f"read_data {data_file}", "set type 1 density/disc 1.0",
             f"pair_style gran/hooke/history {law.kn!r} {law.kt!r} {gamma_n!r} 0.0 {law.mu!r} 0 "

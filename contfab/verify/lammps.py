@@ -19,8 +19,10 @@ e = 0.55, κ as given; dense: μ_prep = 0, loose: :data:`dem.job.LOOSE`); its ta
   velocities with Lees-Edwards boundaries, or ``x``, affine remapping and fluctuation
   velocities).
 
-LAMMPS's tangential dashpot is ``gamma_t``: ``"zero"`` (the default) is the DEM's law,
-which has none; ``"half"`` is LAMMPS's usual γt = γn/2.
+LAMMPS's tangential dashpot is ``gamma_t``: ``"zero"`` (the default) is the DEM's default
+law, which has none; ``"half"`` is LAMMPS's usual γt = γn/2. The DEM's contact law is of
+style ``contact_style`` (:mod:`dem.contact_law`): with ``"hooke/history"`` and ``gamma_t =
+"half"`` the two engines run the same force law.
 
 Both are measured at the same steps by the same code
 (:func:`contfab.verify.contacts.contact_measures`: contact stress, R/P, τ/σn = σxy/-σyy,
@@ -49,6 +51,7 @@ import numpy as np
 
 from contfab.verify.contacts import MEASURES, contact_measures
 from contfab.verify.lammps_engine import REMAPS, LammpsBiaxial, LammpsShear
+from dem.contact_law import STYLES
 from dem.fileio import atomic_path, write_csv, write_json
 from dem.measure import Contacts
 
@@ -91,13 +94,15 @@ def shear_reversal_path(amplitude: float, rows: int):
     return parse_path(data)
 
 
-def sample(kind: str, seed: int, n: int, kappa: float, inertial: float, loose: dict):
-    """(state, dynamics) of one prepared sample with zero tangential histories."""
+def sample(kind: str, seed: int, n: int, kappa: float, inertial: float, loose: dict,
+           contact_style: str = STYLES[0]):
+    """(state, dynamics) of one prepared sample with zero tangential histories, the DEM's
+    contact law of style ``contact_style`` (the sample is the same for every style)."""
     from dem.job import Settings, prepare_sample
 
     prep = {"mu_prep": 0.0} if kind == "dense" else loose
     settings = Settings(n=n, seed=seed, kappa=kappa, mu=0.5, e=0.55, kt_ratio=0.5,
-                        inertial=inertial, **prep)
+                        inertial=inertial, contact_style=contact_style, **prep)
     state, dyn, _ = prepare_sample(settings, progress=False)
     state.pair_hist[:, :2] = 0.0
     return state, dyn
@@ -267,7 +272,8 @@ def overlay_plot(curves: list[dict], path_name: str, file) -> None:
 def compare(out, n: int = 1000, seeds=(1, 2, 3), kinds=("dense", "loose"), kappa: float = 1e3,
             strain: float = 0.3, rows: int = 150, inertial: float = 1e-3,
             gamma_t: str = "zero", loose: dict | None = None, path: str = "biaxial",
-            shear: float = MAX_SHEAR, remap: str = "v", progress=None) -> dict:
+            shear: float = MAX_SHEAR, remap: str = "v", contact_style: str = STYLES[0],
+            progress=None) -> dict:
     """Run the comparison (module doc); returns {what: file written} and the table."""
     from contfab.bench.dem_lammps import lammps_class
     from dem.job import LOOSE
@@ -283,7 +289,7 @@ def compare(out, n: int = 1000, seeds=(1, 2, 3), kinds=("dense", "loose"), kappa
     curves, summaries = [], []
     for kind in kinds:
         for seed in seeds:
-            state, dyn = sample(kind, seed, n, kappa, inertial, loose)
+            state, dyn = sample(kind, seed, n, kappa, inertial, loose, contact_style)
             ours = dem_curve(state.copy(), dyn, kind, seed, loading)
             theirs = lammps_curve(state, dyn, kind, seed, ours, path, gamma_t, remap)
             for eng, rr in (("dem", ours), ("lammps", theirs)):
@@ -305,7 +311,8 @@ def compare(out, n: int = 1000, seeds=(1, 2, 3), kinds=("dense", "loose"), kappa
                                            "recovery_fraction": RECOVERY_FRACTION}
                                           if path == "shear_reversal" else
                                           {"strain": strain, "residual_window": RESIDUAL_WINDOW}),
-                         "inertial": inertial, "gamma_t": gamma_t, "loose": loose},
+                         "inertial": inertial, "gamma_t": gamma_t,
+                         "contact_style": contact_style, "loose": loose},
             "runs": summaries, "table": table}),
     }
     overlay_plot(curves, path, out / "overlay.png")

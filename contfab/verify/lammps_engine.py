@@ -111,7 +111,8 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from contfab.bench.dem_lammps import PDAMP_STEPS, lammps_class, normal_damping, write_data
+from contfab.bench.dem_lammps import PDAMP_STEPS, lammps_class, write_data
+from dem.contact_law import hooke_gamma_n
 
 GAMMA_T = ("half", "zero")
 DISC_INERTIA = 0.5
@@ -153,7 +154,7 @@ class LammpsSample:
         self._tmp = tempfile.TemporaryDirectory(prefix="contfab_verify_")
         data = os.path.join(self._tmp.name, "sample.data")
         write_data(state, data)
-        gamma_n = normal_damping(dyn.law.kn, dyn.law.beta, float(np.mean(state.mass)))
+        gamma_n = hooke_gamma_n(dyn.law.kn, dyn.law.beta, float(np.mean(state.mass)))
         self.lmp = lammps(cmdargs=["-log", "none", "-screen", "none", "-nocite"])
         for c in ["units lj", "dimension 2", "atom_style sphere", "boundary p p p",
                   "comm_modify vel yes", "atom_modify sort 0 0.0", f"read_data {data}",
