@@ -125,7 +125,7 @@ class Settings:
         # also for the damped contacts that relax a friction drop (dem.prepare.lower_friction)
         dynamics(self.law(), 1.0, self.inertial, self.dt_fraction, self.skin)
         if self.mu_prep is not None and self.mu_prep > self.mu:
-            dynamics(replace(self.law(), e=E_SWITCH), 1.0, self.inertial, self.dt_fraction,
+            dynamics(replace(_prep_law(self), e=E_SWITCH), 1.0, self.inertial, self.dt_fraction,
                      self.skin)
 
 
