@@ -110,7 +110,8 @@ def _dem_settings_args(p: argparse.ArgumentParser) -> None:
 
 
 DEM_SETTINGS = ("n", "seed", "radii", "kappa", "mu", "mu_prep", "prep_rate", "prep_quench",
-                "inertial", "e", "kt_ratio", "mu_roll", "contact_style", "dt_fraction", "prep_max_steps", "allow_unrelaxed", "target_c0", "target_tries",
+                "inertial", "e", "kt_ratio", "mu_roll", "contact_style", "dt_fraction",
+                "prep_max_steps", "allow_unrelaxed", "target_c0", "target_tries",
                 "checkpoint_every")
 
 

@@ -41,12 +41,13 @@ class CheckpointError(ValueError):
 def dynamics_dict(dyn: Dynamics) -> dict:
     law = dyn.law
     return {"kn": law.kn, "kt_ratio": law.kt_ratio, "e": law.e, "mu": law.mu,
-            "mu_roll": law.mu_roll, "style": law.style, "dt": dyn.dt, "skin": dyn.skin, "gdot_ref": dyn.gdot_ref,
-            "tau_servo": dyn.tau_servo, "l_max": dyn.l_max}
+            "mu_roll": law.mu_roll, "style": law.style, "dt": dyn.dt, "skin": dyn.skin,
+            "gdot_ref": dyn.gdot_ref, "tau_servo": dyn.tau_servo, "l_max": dyn.l_max}
 
 
 def dynamics_from(d: dict) -> Dynamics:
-    law = ContactLaw(kn=d["kn"], kt_ratio=d["kt_ratio"], e=d["e"], mu=d["mu"], mu_roll=d["mu_roll"],
+    law = ContactLaw(kn=d["kn"], kt_ratio=d["kt_ratio"], e=d["e"], mu=d["mu"],
+                     mu_roll=d["mu_roll"],
                      style=d.get("style", STYLES[0]))  # written before the styles: the default
     return Dynamics(law, d["dt"], d["skin"], d["gdot_ref"], d["tau_servo"], d["l_max"])
 

@@ -563,7 +563,8 @@ def _advance(state: State, dyn: Dynamics, nsteps: int, control: Control) -> Stat
     while done_total < nsteps:
         done, status = advance_kernel(
             nsteps - done_total, mid, done_total, nsteps, dyn.dt, kn, kt, mu, mu_roll,
-            dyn.law.arm_offset, dyn.skin, r_max, dyn.gdot_ref, dyn.tau_servo, dyn.l_max, state.radius, const,
+            dyn.law.arm_offset, dyn.skin, r_max, dyn.gdot_ref, dyn.tau_servo, dyn.l_max,
+            state.radius, const,
             state.mass, state.inv_mass, state.inv_inertia, state.s, state.v, state.omega,
             state.force, state.torque, state.s_ref, state.h, state.h_ref, state.L, state.L_int,
             state.pair_ij, state.pair_shift, state.pair_hist, state.pair_f, state.n_pairs,

@@ -184,8 +184,8 @@ def _prepare_realization(settings: Settings, rng: np.random.Generator, progress:
                                    f"--prep-max-steps), or --allow-unrelaxed to use it anyway")
         warnings.warn(f"UNRELAXED SAMPLE used (allow_unrelaxed): {what}", UnrelaxedWarning,
                       stacklevel=2)
-    dyn = loading_dynamics(switch_friction(dyn_prep, settings.mu), state, settings.contact_style,
-                        settings.inertial)
+    dyn = loading_dynamics(switch_friction(dyn_prep, settings.mu), state,
+                           settings.contact_style, settings.inertial)
     return state, dyn, info
 
 
