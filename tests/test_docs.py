@@ -18,7 +18,7 @@ SCANNED = ("README.md", "docs", "contfab", "dem", "cases")
 TEXT_SUFFIXES = {".py", ".md", ".toml", ".json", ".txt", ".cfg"}
 NARRATION = re.compile(
     r"stop [0-9]+|session [0-9]+|branch `|/work/|\.\./shared|the lead\b|the helper|DESIGN"
-    r"|\bissue [0-9]+",
+    r"|\bissue [0-9]+|this round|the `search` tool",
     re.IGNORECASE)
 """Process words, machine paths and pointers to the design file (case-insensitive)."""
 MARKDOWN_LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)")
@@ -84,7 +84,8 @@ def test_markdown_links_and_quoted_paths_resolve_inside_the_repository():
 @pytest.mark.parametrize("line", [
     "Measured at stop 12 on main.", "as in session 11", "the DEM helper, branch `dem-e`",
     "see /work/notes/s12/run.py", "Design notes are in ../shared/DESIGN.md",
-    "(DESIGN §4)", "asked by the lead", "the acceptance points of issue 3"])
+    "(DESIGN §4)", "asked by the lead", "the acceptance points of issue 3",
+    "not measured this round", "the `search` tool found it"])
 def test_the_narration_check_fires_on_each_pattern(line):
     assert narration(f"A sentence.\n{line}\nAnother.") == [line]
 
