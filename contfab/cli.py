@@ -411,7 +411,8 @@ def _add_fexdem(p: argparse.ArgumentParser) -> None:
                    help="hold every cell after its increment until the unbalanced force ratio "
                         "< FORCE_TOL (default: no hold, the campaign's continuous I = 1e-3 paths)")
     p.add_argument("--viscosity", type=float, default=0.0, metavar="ETA",
-                   help="FE×DEM: a linear dashpot in parallel with every cell, stress "
+                   help="FE×DEM and --adaptive: a linear dashpot in parallel with every "
+                        "cell (adaptive: every point), stress "
                         "ETA * (strain increment) / (step of the loading parameter t in [0, 1]), "
                         "ETA in p0 units times t, >= 0 (default 0: no dashpot); its overstress "
                         "is in the curve and the report")

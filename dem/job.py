@@ -210,12 +210,24 @@ class UnrelaxedWarning(UserWarning):
 
 
 def preparation_warnings(prep: dict | None) -> list[str]:
-    """The sidecar's ``warnings`` for a preparation record (empty when it relaxed)."""
-    if prep is None or prep.get("relaxed", True):
+    """The sidecar's ``warnings`` for a preparation record (empty when it relaxed and its
+    quenched collapse, if any, met its thresholds)."""
+    if prep is None:
         return []
-    return [f"UNRELAXED PREPARATION: the sample did not meet the relaxation thresholds "
-            f"(stopped after {prep['steps']} steps at P = {prep['P']:.4g}, unbalanced force "
-            f"ratio {prep['unbalanced']:.3g}, kinetic/elastic {prep['kinetic_ratio']:.3g})"]
+    out = []
+    if prep.get("quench_relaxed") is False:
+        cq = prep.get("c_quenched")
+        where = "it did not run" if cq is None else f"c = {cq:.4f} there"
+        out.append(f"QUENCH STOPPED UNRELAXED: the quenched collapse used its share of the "
+                   f"step budget without meeting its thresholds ({where}); "
+                   f"the test law's relaxation then ended at c0 = {prep['c']:.4f}, which may be "
+                   f"denser than the quench's")
+    if not prep.get("relaxed", True):
+        out.append(f"UNRELAXED PREPARATION: the sample did not meet the relaxation thresholds "
+                   f"(stopped after {prep['steps']} steps at P = {prep['P']:.4g}, unbalanced "
+                   f"force ratio {prep['unbalanced']:.3g}, kinetic/elastic "
+                   f"{prep['kinetic_ratio']:.3g})")
+    return out
 
 
 def _rates(inertial: float) -> dict:

@@ -123,21 +123,29 @@ def test_cells_everywhere_reproduce_fexdem(small):
 
 def test_adaptive_against_a_finished_reference_run(small, tmp_path):
     """``compare.run(reference=DIR)`` takes a finished FE×DEM run as the reference: with a
-    tolerance no model meets, the adaptive run (cells everywhere) is that run's curve; a
-    reference of another scene is refused, naming the difference."""
+    tolerance no model meets, the adaptive run (cells everywhere) is that run's curve, the
+    dashpot in parallel with every point included; a reference of another scene or another
+    viscosity is refused, naming the difference."""
     from contfab.fexdem import compare
 
     kw = dict(strain=6e-4, steps=2, nx=1, ny=1)
-    ref = compare.run("biaxial", small, tmp_path / "ref", default_params(), progress=False, **kw)
+    eta = 50.0                 # overstress η Δε/Δt ≈ 0.03 p0: 1 % of the stress
+    ref = compare.run("biaxial", small, tmp_path / "ref", default_params(), progress=False,
+                      viscosity=eta, **kw)
+    assert ref["dashpot"]["overstress_max_p0"] > 0.01
     rep = compare.run("biaxial", small, tmp_path / "adaptive", default_params(), progress=False,
-                      adaptive=0.01, reference=tmp_path / "ref", **kw)
+                      adaptive=0.01, reference=tmp_path / "ref", viscosity=eta, **kw)
     assert rep["adaptive"]["cell_points"] == rep["cells"]
     assert rep["runs"]["adaptive"]["errors"]["curve"] < 1e-9
+    with pytest.raises(ValueError, match="viscosity 50.0, this run with 0.0"):
+        compare.run("biaxial", small, tmp_path / "other", default_params(), progress=False,
+                    adaptive=0.01, reference=tmp_path / "ref", **kw)
     assert rep["runs"]["tier1"]["errors"] == ref["runs"]["tier1"]["errors"] | {
         "cost_ratio_dem_over_tier": rep["runs"]["tier1"]["errors"]["cost_ratio_dem_over_tier"]}
     with pytest.raises(ValueError, match="another scene: scene"):
         compare.run("biaxial", small, tmp_path / "other", default_params(), progress=False,
-                    adaptive=0.01, reference=tmp_path / "ref", **dict(kw, strain=1e-3))
+                    adaptive=0.01, reference=tmp_path / "ref", viscosity=eta,
+                    **dict(kw, strain=1e-3))
 
 
 def test_a_shadow_cell_that_contradicts_the_bound_sends_every_point_to_a_cell(small):

@@ -63,3 +63,33 @@ def test_bad_target_settings_are_refused(bad, text):
 
     with pytest.raises(ValueError, match=text):
         Settings(**bad).validate()
+
+
+def test_a_quench_that_does_not_relax_leaves_the_test_law_its_reserve(monkeypatch):
+    """The quenched collapse stops where only TEST_LAW_RESERVE steps are left and says so;
+    the test law then relaxes the sample at P0. With no room for the quench it does not
+    run, and an unrelaxed end reports the figures of the stage that ran, never those of
+    a stage that did not (P = 0, unbalanced force ratio inf)."""
+    import dem.prepare as prep
+    from dem.contact_law import ContactLaw
+    from dem.prepare import compress_to_pressure, lower_friction
+
+    monkeypatch.setattr(prep, "TEST_LAW_RESERVE", 30_000)
+    rng = np.random.default_rng(2)
+    gas = random_gas(np.full(60, 0.5) * rng.uniform(0.8, 1.2, 60), 0.3, rng)
+    dyn = make_dynamics(gas, mu=10.0, l_max=2e-2)
+    state, info = compress_to_pressure(gas, dyn)
+    assert info.relaxed
+    test_law = ContactLaw(kn=1e3, e=0.5, mu=0.5)
+
+    short = state.copy()
+    _, out = lower_friction(short, dyn, test_law, info, max_steps=info.steps + 30_500)
+    assert out.quench_relaxed is False and out.c_quenched is not None
+    assert out.relaxed and abs(out.P - 1.0) < 1e-3          # the test law relaxed it
+    assert out.steps <= info.steps + 30_500
+
+    none = state.copy()
+    _, out = lower_friction(none, dyn, test_law, info, max_steps=info.steps + 500)
+    assert out.quench_relaxed is False and out.c_quenched is None
+    assert not out.relaxed
+    assert out.P > 0.5 and np.isfinite(out.unbalanced)     # the test law's 500 steps

@@ -39,7 +39,9 @@ parameter t ∈ [0, 1], η in p0 units times t); the FE×DEM curve carries its o
 (``overstress_max``, ``overstress_mean``: the largest and the mean |σ_v| of the step, units
 of p0, 0 without a dashpot) and the report its ``dashpot`` figures. The dashpot has no
 state: a resumed run may continue with another η (the report's ``newton.viscosity`` is the
-resumed part's).
+resumed part's). The adaptive run has the same dashpot at every point, cell or model, so
+that it and FE×DEM solve the same regularized problem; a ``reference`` run of another η is
+refused.
 
 ``resume=True`` (``contfab fexdem ... --resume``) continues an interrupted or killed
 FE×DEM run in ``--out`` from ``cells/`` (same scene and settings): the field and the
@@ -256,10 +258,11 @@ def _fexdem(report, curves, finals, *, case, scene, prepared, out, params, p0, b
     curves["dem"], finals["dem"] = res, solver.committed
 
 
-def _reference(report, curves, finals, *, case, scene, cfg, prepared, ref: Path) -> None:
-    """A finished FE×DEM run of the same scene and sample in ``ref`` as the reference of
-    ``run`` (its report, curve and last field checkpoint) into ``report``, ``curves`` and
-    ``finals``."""
+def _reference(report, curves, finals, *, case, scene, cfg, prepared, ref: Path,
+               viscosity: float) -> None:
+    """A finished FE×DEM run of the same scene, sample and dashpot ``viscosity`` in ``ref``
+    as the reference of ``run`` (its report, curve and last field checkpoint) into
+    ``report``, ``curves`` and ``finals``."""
     path = ref / "report.json"
     if not path.exists():
         raise FileNotFoundError(f"no finished FE×DEM run in {ref} (its report.json is missing)")
@@ -269,6 +272,10 @@ def _reference(report, curves, finals, *, case, scene, cfg, prepared, ref: Path)
     if bad:
         raise ValueError(f"reference {ref} is another scene: " + ", ".join(
             f"{k} {v[0]!r} there, {v[1]!r} here" for k, v in bad.items()))
+    if old["newton"].get("viscosity", 0.0) != viscosity:
+        raise ValueError(f"reference {ref} ran with the dashpot viscosity "
+                         f"{old['newton'].get('viscosity', 0.0)!r}, this run with {viscosity!r}: "
+                         f"give the same --viscosity (the adaptive run uses it at every point)")
     if old["cell_dem"]["c0"] != initial_fields(prepared, 1, 1.0)[1][0, STATE_NAMES.index("c")]:
         raise ValueError(f"reference {ref} ran cells of another sample (c0 = "
                          f"{old['cell_dem']['c0']}) than {prepared}")
@@ -281,8 +288,9 @@ def _reference(report, curves, finals, *, case, scene, cfg, prepared, ref: Path)
         rows = list(csv.reader(f))
     curves["dem"] = analysis.RunResult(rows[0], [[r[0], *map(float, r[1:])] for r in rows[1:]])
     for key in ("discs_per_cell", "cell_dem", "newton", "cell_options", "cell_modulus_P0",
-                "profile"):
-        report[key] = old[key]
+                "profile", "dashpot"):
+        if key in old:
+            report[key] = old[key]
     report["runs"]["dem"] = old["runs"]["dem"]
     report["reference"] = str(ref)
 
@@ -341,7 +349,7 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
                 layout=layout, modulus=modulus, xcol=xcol, ycol=ycol, viscosity=viscosity)
     else:
         _reference(report, curves, finals, case=case, scene=scene, cfg=cfg, prepared=prepared,
-                   ref=Path(reference))
+                   ref=Path(reference), viscosity=viscosity)
     for tier in (1, 2):
         tmat = TierMaterial(params.replace("regularization", p_ref=p0), tier)
         cols = [STATE_NAMES.index(n) for n in tiers.STATE_NAMES[tier]]
@@ -359,13 +367,13 @@ def run(case: str, prepared: str, out: str | Path, params: Params, p0: float = 1
         amat.update(stress0, state0, np.zeros((disc.npoints, 3)),
                     np.zeros(disc.npoints))                          # JIT, untimed
         t0 = time.perf_counter()
-        asolver = AdaptiveSolver(disc, amat, DEM_NEWTON)
+        asolver = AdaptiveSolver(disc, amat, replace(DEM_NEWTON, viscosity=viscosity))
         ares = analysis.run(asolver, [scene.stage], scene.measure,
                             analysis.Outputs(out, f"{case}_adaptive", curve_axes=(xcol, ycol),
                                              curve_each_step=True), progress)
         _compare(report, "adaptive", ares, asolver, time.perf_counter() - t0, curves, finals,
                  disc, xcol, ycol)
-        report["adaptive"] = amat.report()
+        report["adaptive"] = amat.report() | {"viscosity": viscosity}
         dem_cpu = report["profile"]["trials"]["cell_cpu_s"]
         report["adaptive"]["cost_ratio_cpu_adaptive_over_dem"] = (
             sum(amat.cpu.values()) / dem_cpu if dem_cpu > 0 else None)
