@@ -209,9 +209,15 @@ class UnrelaxedWarning(UserWarning):
     """A sample used although its preparation hit the step limit unrelaxed."""
 
 
+UNRELAXED = "UNRELAXED PREPARATION"
+"""How the warning of a sample that missed the relaxation thresholds starts: only it stops
+a run on the sample (unless ``allow_unrelaxed``)."""
+
+
 def preparation_warnings(prep: dict | None) -> list[str]:
     """The sidecar's ``warnings`` for a preparation record (empty when it relaxed and its
-    quenched collapse, if any, met its thresholds)."""
+    quenched collapse, if any, met its thresholds; a quench stopped at its share of the
+    budget is said, but the sample relaxed under the test law and may be used)."""
     if prep is None:
         return []
     out = []
@@ -223,7 +229,7 @@ def preparation_warnings(prep: dict | None) -> list[str]:
                    f"the test law's relaxation then ended at c0 = {prep['c']:.4f}, which may be "
                    f"denser than the quench's")
     if not prep.get("relaxed", True):
-        out.append(f"UNRELAXED PREPARATION: the sample did not meet the relaxation thresholds "
+        out.append(f"{UNRELAXED}: the sample did not meet the relaxation thresholds "
                    f"(stopped after {prep['steps']} steps at P = {prep['P']:.4g}, unbalanced "
                    f"force ratio {prep['unbalanced']:.3g}, kinetic/elastic "
                    f"{prep['kinetic_ratio']:.3g})")
@@ -327,7 +333,7 @@ def run_job(path_name: str, settings: Settings, out_dir: str | FsPath, resume: s
         ran = resumed_settings(resume, saved.get("settings", {}), state, dyn, run is not None,
                                _given(settings) if given is None else given)
         for w in preparation_warnings(prep):
-            if not ran["allow_unrelaxed"]:
+            if w.startswith(UNRELAXED) and not ran["allow_unrelaxed"]:
                 raise PreparationError(f"--resume {resume}: {w}; accepted: a relaxed sample, "
                                        f"or --allow-unrelaxed to use it anyway")
             warnings.warn(f"--resume {resume}: {w}", UnrelaxedWarning, stacklevel=2)

@@ -97,6 +97,25 @@ def test_unrelaxed_preparation_is_an_error_unless_allowed_and_then_recorded(tmp_
     assert meta["warnings"] and meta["warnings"][0].startswith("UNRELAXED PREPARATION")
 
 
+def test_a_quench_stopped_at_its_share_is_said_but_does_not_stop_a_run(monkeypatch, tmp_path):
+    """A loose sample whose quenched collapse ran out of its share of the budget relaxed
+    under the test law: its sidecar and every run on it say so, and the run goes on."""
+    import dem.prepare
+
+    monkeypatch.setattr(dem.prepare, "TEST_LAW_RESERVE", 1_999_000)   # no room for a quench
+    args = ["--n", "60", "--kappa", "1e3", "--inertial", "1e-2", "--mu-prep", "10"]
+    assert main(["dem", "prepare", "--out", str(tmp_path / "s.npz"), *args]) == 0
+    (tmp_path / "short.toml").write_text(SHORT)
+    run = ["dem", "run", str(tmp_path / "short.toml"), "--resume", str(tmp_path / "s.npz")]
+    with pytest.warns(UnrelaxedWarning, match="QUENCH STOPPED UNRELAXED"):
+        assert main([*run, "--out", str(tmp_path / "o")]) == 0
+    meta = json.loads((tmp_path / "o" / "history.json").read_text())
+    prep = meta["preparation"]
+    assert prep["relaxed"] is True and prep["quench_relaxed"] is False
+    assert prep["c_quenched"] is None and prep["c"] > prep["c_compressed"]
+    assert len(meta["warnings"]) == 1 and meta["warnings"][0].startswith("QUENCH STOPPED")
+
+
 def test_bench_prints_no_lammps_ratio_without_a_lammps_run(monkeypatch, tmp_path):
     import contfab.bench.dem as bench
     import contfab.bench.dem_lammps as dem_lammps
