@@ -315,9 +315,43 @@ def test_the_band_measure_finds_a_strip_s_angle_and_the_mean_c_inside_it():
     gp0 = np.zeros(disc.npoints)
     marks = [(gp0, np.where(inside, 0.80, 0.85)), (gp0 + inside, np.where(inside, 0.82, 0.85))]
     band = band_measure(disc, marks, (0, 1))
-    assert band["angle"] == pytest.approx(55.0, abs=1.5)
+    assert band["angle"] == pytest.approx(55.0, abs=0.3)
     assert band["band_c"] == pytest.approx(0.81, abs=1e-12)
     assert math.isnan(band_measure(disc, marks, None)["band_c"])
+
+
+@pytest.mark.parametrize("level", [1, 2])
+def test_the_band_angle_of_prescribed_noisy_strips_is_within_half_a_degree(level):
+    """Gaussian strips of plastic strain increment (full width 0.05–0.15 at half maximum,
+    30 % multiplicative noise per point) at random angles 40–65° and offsets through the
+    specimen of the band case, alone or (level 2) crossed by a weaker band: the measured
+    angle lies within 0.5° of the prescribed one (a Hough transform alone scatters by
+    1.4–4° RMS on these meshes)."""
+    from contfab.fem import mesh as meshes
+    from contfab.fem.assembly import Discretization
+    from contfab.scenes.biaxial_shear_band import HEIGHT, WIDTH, band_angle
+
+    disc = Discretization(meshes.delaunay_rectangle(WIDTH, HEIGHT, WIDTH / (8 * level)), "P2")
+    rng = np.random.default_rng(level)
+
+    def strip(angle, offset, fwhm):
+        theta = math.radians(angle)
+        s = (disc.points - [0.5 * WIDTH, 0.5 * HEIGHT + offset]) @ [-math.sin(theta), math.cos(theta)]
+        return np.exp(-0.5 * (s / (fwhm / 2.3548)) ** 2)
+
+    for _ in range(12):
+        angle, offset, fwhm = rng.uniform(40, 65), rng.uniform(-0.15, 0.15), rng.uniform(0.05, 0.15)
+        noise = np.clip(1.0 + 0.3 * rng.standard_normal(disc.npoints), 0.0, None)
+        assert band_angle(disc, strip(angle, offset, fwhm) * noise) == pytest.approx(angle, abs=0.5)
+    # an X: a weaker band (0.4-0.7 of the peak) crossing the first at its centre; on level 1
+    # (eight elements across, the band two to three) the crossing pulls the fit by 1.2° on
+    # average (up to 2.6°)
+    for _ in range(8 if level > 1 else 0):
+        angle, other, offset, fwhm = (rng.uniform(42, 60), rng.uniform(42, 60), rng.uniform(-0.1, 0.1),
+                                      rng.uniform(0.05, 0.12))
+        noise = np.clip(1.0 + 0.3 * rng.standard_normal(disc.npoints), 0.0, None)
+        dgp = (strip(angle, offset, fwhm) + rng.uniform(0.4, 0.7) * strip(180.0 - other, offset, fwhm))
+        assert band_angle(disc, dgp * noise) == pytest.approx(angle, abs=0.5)
 
 
 @pytest.mark.parametrize("argv, message", [

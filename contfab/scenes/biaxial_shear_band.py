@@ -16,8 +16,8 @@ has no c to lower). ``--c0`` gives the initial density as a packing fraction ins
 ``--dense`` (:mod:`contfab.scenes.material_options`).
 
 The band angle θ to the minor principal stress direction (the horizontal) is measured
-twice, each time as the direction of the strip (two elements wide) that holds the most of
-a plastic shear strain increment (a Hough transform, :func:`band_angle`), and each against
+twice, each time as the direction of the band of a plastic shear strain increment (a
+Hough transform refined by a weighted line fit, :func:`band_angle`), and each against
 the references of the state it refers to: Roscoe π/4 + ψ/2, Arthur π/4 + (φ + ψ)/4 and
 Coulomb π/4 + φ/2, each a separate figure, with ``in_roscoe_coulomb`` per measurement.
 
@@ -87,65 +87,114 @@ SPOT = (0.0, 0.3 * HEIGHT, 0.15 * WIDTH, 0.01)
 ONSET_DROP = 0.25
 """The onset window closes at the first step after the peak where σ1/σ3 has fallen by this
 fraction of the peak-to-end drop (:func:`onset_window`)."""
+REFINE_ITERATIONS = 20
+"""Largest number of refinements of :func:`band_angle`'s direction."""
 MIN_SOFTENING = 0.01
 """A curve whose end lies less than this fraction below its peak has no onset window."""
 
 
 def band_angle(disc: Discretization, dgp: np.ndarray) -> float:
-    """Angle (degrees, in [0, 90]) of the dominant band to the horizontal.
+    """Angle (degrees, in [0, 90]) of the dominant band of the plastic shear strain
+    increment ``dgp`` (per quadrature point) to the horizontal.
 
-    A Hough transform of the plastic shear strain increment ``dgp`` (per element): for
-    each direction θ (0.5° steps) the element centres are binned across the line
-    direction in bins two elements wide; the direction whose fullest bin holds the most
-    strain is the band's. Works for one band and for crossing bands (the stronger wins).
+    First a Hough transform of the element means: for each direction θ (0.5° steps) the
+    element centres are binned across the line in bins two elements wide, and the
+    direction whose fullest bin holds the most strain is the band's (one band, or the
+    stronger of crossing bands). Its bins' phase makes that estimate scatter by 1.3–4.2°
+    (RMS over prescribed strips, levels 3 to 1). Then it is refined to a fixed point: the
+    band is the strip of half-width max(w/2, 3 h) about its centre line (w the full width
+    at half maximum of the profile across the current direction, :func:`band_width`; h the
+    element size: a wider strip takes in the crossing band of an X where the bands are
+    diffuse, and tips the fit toward the horizontal), and the direction is that of the line y = a + b x fitted to the
+    quadrature points inside by least squares weighted by ``dgp`` and the quadrature
+    weights (x = a + b y for a band steeper than the specimen's diagonal, which then
+    meets the platens, not the sides). Each cross-section of a strip cut by the sides is
+    whole, so the fit is unbiased where a principal axis of the same points is not
+    (the strip's ends are slanted). On prescribed strips with noise the refined angle is
+    within 0.4° (RMS 0.05–0.14°, levels 3 to 1; ``tests/test_fem_cases.py``); crossed at
+    its centre by a weaker band, within 0.4° on levels 2 and 3 and 1.2° low on average on
+    level 1, where a band is two or three elements wide.
     """
+    theta = _hough_direction(disc, disc.element_mean(dgp))
+    h = math.sqrt(disc.area() / disc.ne)
+    span = np.ptp(disc.points, axis=0)
+    weight = disc.weights.ravel() * dgp
+    for _ in range(REFINE_ITERATIONS):
+        normal = np.array([-math.sin(theta), math.cos(theta)])
+        centre, width, _ = _profile_half_max(disc, dgp, theta)
+        inside = np.abs(disc.points @ normal - centre) <= max(0.5 * width, 3.0 * h)
+        w, (x, y) = weight[inside], disc.points[inside].T
+        if not w.sum() > 0:
+            break
+        dx, dy = x - w @ x / w.sum(), y - w @ y / w.sum()
+        if abs(math.tan(theta)) * span[0] <= span[1]:        # crosses the sides
+            new = math.atan((w * dx * dy).sum() / (w * dx * dx).sum()) % math.pi
+        else:                                                  # meets the platens
+            new = (0.5 * math.pi - math.atan((w * dx * dy).sum() / (w * dy * dy).sum())) % math.pi
+        settled = abs(new - theta) < 1e-6
+        theta = new
+        if settled:
+            break
+    angle = math.degrees(theta)
+    return min(angle, 180.0 - angle)
+
+
+def _hough_direction(disc: Discretization, dgp_elements: np.ndarray) -> float:
+    """Direction θ (radians, in [0, π)) of :func:`band_angle`'s Hough transform."""
     centres = disc.mesh.p[:, disc.mesh.t].mean(axis=1).T
     width = 2.0 * np.sqrt(disc.area() / disc.ne)
     best, best_theta = -1.0, 0.0
     for theta in np.radians(np.arange(0.0, 180.0, 0.5)):
         normal = centres @ np.array([-np.sin(theta), np.cos(theta)])
         bins = np.floor((normal - normal.min()) / width).astype(np.int64)
-        score = np.bincount(bins, weights=dgp).max()
+        score = np.bincount(bins, weights=dgp_elements).max()
         if score > best:
             best, best_theta = score, theta
-    angle = math.degrees(best_theta)
-    return min(angle, 180.0 - angle)
+    return float(best_theta)
+
+
+def _profile_half_max(disc: Discretization, dgp: np.ndarray,
+                      theta: float) -> tuple[float, float, float]:
+    """(position of the band's centre along the normal of direction ``theta``, its full
+    width at half maximum, the peak) from the profile of ``dgp`` across that direction:
+    the points binned along the normal in bins a quarter of the mean element size wide,
+    each bin the quadrature-weighted mean of ``dgp`` (so the specimen's shorter chords at
+    the corners do not count less); the half-maximum crossings either side of the fullest
+    bin, interpolated linearly between bin centres; the centre is their midpoint."""
+    w = disc.weights.ravel()
+    step = 0.25 * math.sqrt(disc.area() / disc.ne)
+    s = disc.points @ np.array([-math.sin(theta), math.cos(theta)])
+    bins = np.floor((s - s.min()) / step).astype(np.int64)
+    area = np.bincount(bins, weights=w)
+    profile = np.bincount(bins, weights=w * dgp) / np.where(area > 0, area, 1.0)
+    k = int(np.argmax(profile))
+    half = 0.5 * profile[k]
+    lo = k
+    while lo > 0 and profile[lo - 1] > half:
+        lo -= 1
+    hi = k
+    while hi < len(profile) - 1 and profile[hi + 1] > half:
+        hi += 1
+    left = lo - (0.0 if lo == 0 else (profile[lo] - half) / (profile[lo] - profile[lo - 1]))
+    right = hi + (0.0 if hi == len(profile) - 1 else
+                  (profile[hi] - half) / (profile[hi] - profile[hi + 1]))
+    centre = s.min() + (0.5 * (left + right) + 0.5) * step
+    return centre, (right - left) * step, float(profile[k])
 
 
 def band_width(disc: Discretization, dgp: np.ndarray, angle: float) -> float:
     """Full width at half maximum of the band of plastic shear strain increment ``dgp``
     (per quadrature point) across the band direction ``angle`` (degrees to the horizontal,
-    either sense: the one whose profile peaks higher).
-
-    The points are binned along the band normal in bins a quarter of the mean element size
-    wide; each bin holds the quadrature-weighted mean of ``dgp`` (the mean increment along
-    the line, so the specimen's shorter chords at the corners do not count less). The width
-    is the distance between the half-maximum crossings either side of the fullest bin
-    (linear interpolation between bin centres). NaN if ``angle`` is NaN.
+    either sense: the one whose profile peaks higher), from the profile of
+    :func:`_profile_half_max`. NaN if ``angle`` is NaN.
     """
     if not math.isfinite(angle):
         return math.nan
-    w = disc.weights.ravel()
-    step = 0.25 * math.sqrt(disc.area() / disc.ne)
     best = (-1.0, math.nan)
     for theta in (math.radians(angle), math.pi - math.radians(angle)):
-        s = disc.points @ np.array([-math.sin(theta), math.cos(theta)])
-        bins = np.floor((s - s.min()) / step).astype(np.int64)
-        area = np.bincount(bins, weights=w)
-        profile = np.bincount(bins, weights=w * dgp) / np.where(area > 0, area, 1.0)
-        k = int(np.argmax(profile))
-        half = 0.5 * profile[k]
-        lo = k
-        while lo > 0 and profile[lo - 1] > half:
-            lo -= 1
-        hi = k
-        while hi < len(profile) - 1 and profile[hi + 1] > half:
-            hi += 1
-        left = lo - (0.0 if lo == 0 else (profile[lo] - half) / (profile[lo] - profile[lo - 1]))
-        right = hi + (0.0 if hi == len(profile) - 1 else
-                      (profile[hi] - half) / (profile[hi] - profile[hi + 1]))
-        if profile[k] > best[0]:
-            best = (profile[k], (right - left) * step)
+        _, width, peak = _profile_half_max(disc, dgp, theta)
+        if peak > best[0]:
+            best = (peak, width)
     return best[1]
 
 
@@ -322,7 +371,7 @@ def band_measure(disc: Discretization, marks: list, window: tuple[int, int] | No
         return {"angle": math.nan, "band_width": math.nan, "band_c": math.nan}
     (gp0, c0), (gp1, c1) = marks[window[0]], marks[window[1]]
     dgp = np.clip(gp1 - gp0, 0.0, None)
-    angle = band_angle(disc, disc.element_mean(dgp))
+    angle = band_angle(disc, dgp)
     weight = disc.weights.ravel() * dgp
     band_c = math.nan if c0 is None or not weight.sum() > 0 else \
         float(weight @ (0.5 * (c0 + c1)) / weight.sum())
