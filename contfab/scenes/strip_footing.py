@@ -30,7 +30,10 @@ associated flow at φ*, against Prandtl–Reissner (``--no-check`` skips it). Ti
   factor is printed with "no published reference" (N_γ), or against Prandtl–Reissner at
   Davis's reduced angle φ* (N_q, :func:`davis_angle`: a rough bound), and φ* is noted.
   ``--relaxation-time`` makes the material Duvaut–Lions viscoplastic
-  (:mod:`contfab.fem.viscous`; docs/fem_validation.md measures it on non-associated N_γ).
+  (:mod:`contfab.fem.viscous`); ``--explicit CYCLES`` solves the push by explicit dynamic
+  relaxation (:mod:`contfab.fem.explicit`), which carries the rate-independent
+  non-associated footing through collapse where Newton fails (docs/fem_validation.md,
+  section 7, measures both on non-associated N_γ).
 
 The computed factor is the bearing pressure at the end of the push; the push is a
 multiple of the elastic settlement scale N·b/λ, and the plateau is checked (the load
@@ -54,6 +57,7 @@ from contfab.fem import mesh as meshes
 from contfab.fem.assembly import Discretization
 from contfab.fem.elements import ELEMENTS
 from contfab.fem.material import TierMaterial
+from contfab.fem.explicit import ExplicitOptions, ExplicitSolver
 from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver, Stage
 from contfab.params import ParamError
 from dem.fileio import write_csv
@@ -157,7 +161,8 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
           out: Path | None, progress: bool, push: float = 15.0,
           apex_stiffness: float = 1e-9, dt_max: float = 0.05,
           settlement: float | None = None, relaxation_time: float | None = None,
-          tier=0, tol_stall: float = NewtonOptions.tol_stall) -> dict:
+          tier=0, tol_stall: float = NewtonOptions.tol_stall,
+          explicit: int | None = None) -> dict:
     """One footing analysis; returns the factor, its curve summary, Newton figures, files.
 
     ``tier`` 0 runs the constant angles ``phi_deg``, ``psi_deg``; a tier >= 1 (or an array:
@@ -170,7 +175,9 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
     effect). ``relaxation_time`` τ makes the material Duvaut–Lions viscoplastic
     (:mod:`contfab.fem.viscous`), τ in units of the settlement over B (the push runs at unit
     settlement rate). ``tol_stall`` is the Newton stall tolerance
-    (:class:`~contfab.fem.solver.NewtonOptions`).
+    (:class:`~contfab.fem.solver.NewtonOptions`). ``explicit`` = a number of cycles solves
+    the push by explicit dynamic relaxation in that many cycles instead of Newton
+    (:mod:`contfab.fem.explicit`; the curve has a point per hundredth of the push).
     """
     if settlement is not None and not 0.0 < settlement <= 1.0:
         raise ParamError(f"settlement = {settlement:g} B is outside the accepted range (0, 1]")
@@ -203,8 +210,12 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
         f_dead += loads.body_force(disc, by=-gamma)
         norm = gamma * B_HALF**2                # N_γ = q_u / (½ γ B) = Q / (γ b²)
     reference = reference_factor(factor, phi_deg) if top == 0 else math.nan
-    solver = Solver(disc, material, stress0, material.initial_state(n),
-                    NewtonOptions(relaxation_time=relaxation_time, tol_stall=tol_stall))
+    if explicit is None:
+        solver = Solver(disc, material, stress0, material.initial_state(n),
+                        NewtonOptions(relaxation_time=relaxation_time, tol_stall=tol_stall))
+    else:
+        solver = ExplicitSolver(disc, material, stress0, material.initial_state(n),
+                                ExplicitOptions(cycles=explicit))
     dofs = {f"{s}_{c}": loads.boundary_dofs(disc, s, c)
             for s, c in (("left", "x"), ("right", "x"), ("bottom", "x"), ("bottom", "y"),
                          ("footing", "x"), ("footing", "y"))}
@@ -278,11 +289,24 @@ def add_arguments(p) -> None:
     p.add_argument("--relaxation-time", type=float, default=None,
                    help="Duvaut-Lions viscoplastic material with this relaxation time, in "
                         "units of settlement over B (default: rate-independent)")
+    p.add_argument("--explicit", type=int, default=None, metavar="CYCLES",
+                   help="solve the push by explicit dynamic relaxation in CYCLES cycles "
+                        "(contfab.fem.explicit; no equilibrium iteration: carries "
+                        "non-associated collapse; check by doubling CYCLES) instead of Newton")
     p.add_argument("--tol-stall", type=float, default=NewtonOptions.tol_stall,
                    help="accept a Newton step whose relative residual stops falling at or "
                         f"below this (default {NewtonOptions.tol_stall:g}; range [1e-8, 1))")
     p.add_argument("--no-check", action="store_true",
                    help="tiers >= 1: skip the tier-0 check against Prandtl-Reissner at phi*")
+
+
+def solution_name(args) -> str:
+    """The solution strategy of a run, as the notes name it."""
+    if args.explicit is not None:
+        return f"explicit dynamic relaxation, {args.explicit} cycles"
+    if args.relaxation_time is not None:
+        return f"Duvaut-Lions viscoplastic, tau = {args.relaxation_time:g} settlement/B"
+    return "rate-independent Newton (consistent tangent)"
 
 
 TABLE_COLUMNS = ("factor", "phi", "psi", "element", "level", "dofs", "computed", "reference",
@@ -303,6 +327,11 @@ def run(args) -> CaseResult:
     if args.settlement is not None and not 0.0 < args.settlement <= 1.0:
         raise ParamError(f"settlement = {args.settlement:g} B is outside the accepted range (0, 1]")
     NewtonOptions(relaxation_time=args.relaxation_time, tol_stall=args.tol_stall)  # ranges
+    if args.explicit is not None:
+        ExplicitOptions(cycles=args.explicit)                                        # range
+        if args.relaxation_time is not None:
+            raise ParamError("--explicit and --relaxation-time are two solution strategies; "
+                             "give one")
     for level in args.level:
         check_level(level)
     tier = material_options.tier_arg(args.tier)
@@ -345,7 +374,7 @@ def run_tier0(args, params) -> CaseResult:
                                   not args.quiet, apex_stiffness=args.apex_stiffness,
                                   settlement=args.settlement,
                                   relaxation_time=args.relaxation_time,
-                                  tol_stall=args.tol_stall)
+                                  tol_stall=args.tol_stall, explicit=args.explicit)
                     except ConvergenceError as exc:
                         if headline:
                             raise
@@ -372,6 +401,7 @@ def run_tier0(args, params) -> CaseResult:
                                                       "settlement_over_B", "dofs", "wall_s",
                                                       "steps", "median_newton")}
                     notes[label]["last_step_residuals"] = r["residuals"][-1]
+                    notes[label]["solution"] = solution_name(args)
                     if psi != phi:
                         notes[label]["davis_phi"] = davis_angle(phi, psi)
                     if psi != phi and associated:
@@ -445,7 +475,7 @@ def run_calibrated(args, params, tier) -> CaseResult:
         return solve(bounds["phi0"], bounds["psi0"], args.factor, element, level, run_params,
                      args.out, not args.quiet, apex_stiffness=args.apex_stiffness,
                      settlement=settlement, relaxation_time=args.relaxation_time,
-                     tier=point_tiers, tol_stall=args.tol_stall)
+                     tier=point_tiers, tol_stall=args.tol_stall, explicit=args.explicit)
 
     if tier == "auto":
         r, auto = run_auto(one, params, args.tolerance, min_tier=1)
@@ -471,8 +501,7 @@ def run_calibrated(args, params, tier) -> CaseResult:
     notes[label] = {k: r[k] for k in CALIBRATED_KEYS}
     notes[label].update(
         within_tier0_bounds=within, tier0_bounds=bounds,
-        solution=("rate-independent Newton (consistent tangent)" if args.relaxation_time is None
-                  else f"Duvaut-Lions viscoplastic, tau = {args.relaxation_time:g} settlement/B"),
+        solution=solution_name(args),
         newton_per_step=r["newton_per_step"])
     if auto is not None:
         notes[label]["auto"] = auto
