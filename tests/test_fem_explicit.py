@@ -59,7 +59,7 @@ def test_the_footing_by_dynamic_relaxation_matches_newton_and_lies_between_raden
     value as the Newton solver on the mesh (to 0.5 %); with ψ = 0, where Newton fails, a
     value below the associated one at φ (Radenković's first theorem: non-associated flow
     carries no more) and above the associated one at φ* = atan(sin φ) (his second: no
-    less), both by Newton on the same mesh. 4 min."""
+    less), both by Newton on the same mesh. 1.5 min."""
     from contfab.scenes import strip_footing as footing
 
     def n_gamma(phi, psi, explicit=None):
