@@ -9,7 +9,7 @@ from contfab.fem import analysis
 from contfab.fem import loads as L
 from contfab.fem import mesh as M
 from contfab.fem.assembly import Discretization
-from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver, Stage
+from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver, Stage, stationary_alpha
 from fem_helpers import Brittle, Elastic, Rough, Softening
 
 
@@ -89,6 +89,9 @@ def test_bad_stage_and_options_are_clear_errors():
     with pytest.raises(ValueError, match=r"tol_stall_last = 5e-05 is outside the accepted "
                                          r"range \[tol_stall, 1\)"):
         NewtonOptions(tol_stall_last=5e-5)
+    with pytest.raises(ValueError, match=r"line_search_rule = 'newton' is not one of "
+                                         r"\('residual', 'energy'\)"):
+        NewtonOptions(line_search_rule="newton")
 
 
 def test_failure_writes_last_state_and_report_and_no_partial_file(tmp_path):
@@ -290,3 +293,30 @@ def test_dashpot_carries_a_snapping_back_bar_through_its_peak():
     assert forces[-1] < 0.8 * max(forces)
     kappa = s.committed.state[:, 4]
     assert kappa[weak].min() > 1.5e-3 and kappa[~weak].max() <= 1e-3
+
+
+def _kinked_slope(root, soft, stiff, fail_above=np.inf):
+    """s(α) = Π'(α) of a convex potential along a correction: slope ``soft`` below the root
+    and ``stiff`` above it (points yielding or unloading along the line); None (a failed
+    update) above ``fail_above``."""
+    return lambda a: None if a > fail_above else (soft if a < root else stiff) * (a - root)
+
+
+@pytest.mark.parametrize("root, soft, stiff, fail_above", [
+    (2.5, 4.0, 4.0, np.inf),      # beyond the Newton step: extrapolated
+    (0.3, 10.0, 100.0, np.inf),   # a kink before α = 1: bracketed
+    (0.45, 1.0, 10.0, 0.6),       # the update fails beyond 0.6
+    (1.0, 3.0, 3.0, np.inf),      # the Newton step itself
+])
+def test_the_energy_line_search_stops_near_the_potential_s_minimum(root, soft, stiff, fail_above):
+    """Π(α) = ∫ s: the accepted α has |s(α)| <= ½ |s(0)| (Matthies & Strang's criterion), so
+    the potential has fallen, and it lies within ½ |s(0)| / (the smaller slope) of the
+    minimizer, found in at most the 5 trials allowed."""
+    slope = _kinked_slope(root, soft, stiff, fail_above)
+    s0, calls = slope(0.0), []
+    alpha = stationary_alpha(lambda a: calls.append(a) or slope(a), s0, trials=4)
+    assert len(calls) <= 5 and slope(alpha) is not None
+    assert abs(slope(alpha)) <= 0.5 * abs(s0)
+    assert abs(alpha - root) <= 0.5 * abs(s0) / min(soft, stiff) + 1e-12
+    if root == 1.0:
+        assert calls == [1.0]

@@ -52,7 +52,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Iterator, Protocol
+from typing import Callable, Iterator, Protocol
 
 import numpy as np
 import scipy.sparse as sp
@@ -164,6 +164,63 @@ class Stage:
                              f"got dt_min={self.dt_min}, dt0={self.dt0}, dt_max={self.dt_max}")
 
 
+LINE_SEARCH_RULES = ("residual", "energy")
+SLOPE_RATIO = 0.5
+"""The energy line search accepts α once |s(α)| <= SLOPE_RATIO |s(0)| (Matthies & Strang
+1979 use 0.5; 0.25 and 0.8 took as many or more linear solves on the N_q footing)."""
+
+
+def stationary_alpha(slope: Callable[[float], float | None], s0: float, trials: int,
+                     ratio: float = SLOPE_RATIO) -> float:
+    """The step length α along a Newton correction δu where the potential is stationary.
+
+    For an associated material the increment minimizes the convex incremental potential
+    Π(u), whose gradient on the free DOFs is the residual r; along δu its slope is
+    s(α) = δu·r(u + α δu), with s(0) = ``s0`` = -δu·K δu < 0 for a positive definite K.
+    s increases with α (Π convex), so its root is bracketed by regula falsi: α = 1 first,
+    then the secant through the last point below the root and the last above it (clipped
+    to the bracket's inner 80 %; the Illinois variant, halving the slope kept at an end
+    that two trials in a row did not move), or, while every trial still descends, the secant beyond
+    the last one (within [1.25 α, 2 α]). Accepts the first α with |s(α)| <= ``ratio``
+    |s0| (Matthies & Strang 1979, "The solution of nonlinear finite element equations",
+    Int. J. Numer. Meth. Eng. 14, 1613–1626); after ``trials`` further trials, the one
+    with the smallest |s|. ``slope`` returns None where the update fails (α is then
+    halved toward the bracket's lower end).
+    """
+    lo, s_lo, hi, s_hi = 0.0, s0, math.inf, math.inf
+    previous, s_previous, side = lo, s_lo, 0
+    alpha, best, s_best = 1.0, 1.0, math.inf
+    for _ in range(trials + 1):
+        s = slope(alpha)
+        if s is None:
+            hi, s_hi = alpha, math.inf
+            alpha = 0.5 * (lo + alpha)
+            continue
+        if abs(s) < s_best:
+            best, s_best = alpha, abs(s)
+        if abs(s) <= ratio * abs(s0):
+            return alpha
+        if s < 0:
+            previous, s_previous = lo, s_lo
+            lo, s_lo = alpha, s
+            s_hi *= 0.5 if side < 0 else 1.0     # Illinois: the kept end's slope halved
+            side = -1
+        else:
+            hi, s_hi = alpha, s
+            s_lo *= 0.5 if side > 0 else 1.0
+            side = 1
+        if math.isfinite(s_hi):
+            alpha = hi - s_hi * (hi - lo) / (s_hi - s_lo)
+            alpha = min(max(alpha, lo + 0.1 * (hi - lo)), hi - 0.1 * (hi - lo))
+        elif math.isfinite(hi):
+            alpha = 0.5 * (lo + hi)
+        else:
+            rising = s_lo > s_previous
+            alpha = lo - s_lo * (lo - previous) / (s_lo - s_previous) if rising else 2 * lo
+            alpha = min(max(alpha, 1.25 * lo), 2 * lo)
+    return best
+
+
 @dataclass(frozen=True)
 class NewtonOptions:
     """Newton tolerances, step control, predictor and line search.
@@ -177,8 +234,12 @@ class NewtonOptions:
     <= ``easy_iter`` solves and is cut by ``cut`` on failure. ``extrapolate`` starts each
     step but a stage's first from the extrapolated increment, and on its failure from the
     committed state, before cutting (module doc; False: the committed state only).
-    ``line_search`` halvings of a correction are tried when it does not reduce the free
-    residual (apex/face switching made plain Newton cycle on the N_γ footing);
+    ``line_search`` bounds the extra trials along a correction, by ``line_search_rule``:
+    ``"residual"`` halves it until the free residual falls (apex/face switching made plain
+    Newton cycle on the non-associated N_γ footing); ``"energy"`` seeks the stationary point
+    of the incremental potential along it (:func:`stationary_alpha`), for associated flow,
+    where a potential exists, and falls back to halving where the correction is no descent
+    direction of one;
     ``spin_step`` is the difference step of the spin tangent (0: off).
     ``relaxation_time`` τ (in the stages' ``duration`` unit) makes every step a Duvaut–Lions
     viscoplastic step with k = Δt/τ (:mod:`contfab.fem.viscous`).
@@ -203,6 +264,7 @@ class NewtonOptions:
     diverge: float = 1e6
     spin_step: float = 1e-7
     line_search: int = 4
+    line_search_rule: str = "residual"
     extrapolate: bool = True
     relaxation_time: float | None = None
     tol_stall_last: float | None = None
@@ -221,6 +283,9 @@ class NewtonOptions:
             raise ValueError(f"need grow >= 1 and 0 < cut < 1, got {self.grow}, {self.cut}")
         if self.line_search < 0:
             raise ValueError(f"line_search = {self.line_search} must be >= 0")
+        if self.line_search_rule not in LINE_SEARCH_RULES:
+            raise ValueError(f"line_search_rule = {self.line_search_rule!r} is not one of "
+                             f"{LINE_SEARCH_RULES}")
         if self.relaxation_time is not None and not (math.isfinite(self.relaxation_time)
                                                      and self.relaxation_time > 0):
             raise ValueError(f"relaxation_time = {self.relaxation_time!r} is outside the "
@@ -557,12 +622,25 @@ class Solver:
 
     def _line_search(self, c: FieldState, system: ConstrainedSystem, f_ext, u, du,
                      current: _Iterate | None) -> _Iterate | None:
-        """u + α du, α = 1, 1/2, ... (``line_search`` halvings) until |r_f| decreases.
+        """The iterate u + α du by ``NewtonOptions.line_search_rule``; None if the update
+        fails at every α tried.
 
         The first correction of a step without a predictor (``current`` None) carries the
-        prescribed displacement increment and is taken whole. Returns the first α that
-        reduces |r_f|, else the best one tried; None if the update fails at every α.
+        prescribed displacement increment and is taken whole. The energy rule takes the α
+        of :func:`stationary_alpha` where du descends (du·r_f < 0), else the residual rule:
+        α = 1, 1/2, ... (``line_search`` halvings) until |r_f| decreases, the first α that
+        reduces it, else the best one tried.
         """
+        free = system.free
+        s0 = math.nan if current is None else float(du[free] @ current.r[free])
+        if self.options.line_search_rule == "energy" and s0 < 0:
+            tried: dict[float, _Iterate | None] = {}
+
+            def slope(alpha: float) -> float | None:
+                tried[alpha] = self._evaluate(c, system, f_ext, u + alpha * du)
+                return None if tried[alpha] is None else float(du[free] @ tried[alpha].r[free])
+
+            return tried[stationary_alpha(slope, s0, self.options.line_search)]
         alpha, best = 1.0, None
         for _ in range(self.options.line_search + 1):
             trial = self._evaluate(c, system, f_ext, u + alpha * du)

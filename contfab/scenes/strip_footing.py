@@ -58,7 +58,8 @@ from contfab.fem.assembly import Discretization
 from contfab.fem.elements import ELEMENTS
 from contfab.fem.material import TierMaterial
 from contfab.fem.explicit import ExplicitOptions, ExplicitSolver
-from contfab.fem.solver import ConvergenceError, NewtonOptions, Solver, Stage
+from contfab.fem.solver import (LINE_SEARCH_RULES, ConvergenceError, NewtonOptions, Solver,
+                                Stage)
 from contfab.params import ParamError
 from dem.fileio import write_csv
 
@@ -73,6 +74,13 @@ PUSH_DT_MIN = 1e-6
 points flip between elastic and plastic from one Newton iterate to the next, leaving a
 residual ∝ the step (2e-7 at 1e-6 of the push, 3e-5 at 1e-4; docs/fem_validation.md §5),
 so these steps need to be small; the associated runs never get near it."""
+ASSOCIATED_TOL = 1e-5
+"""Newton's relative residual tolerance with associated flow (tier 0, ψ = φ, rate-independent),
+which also takes the energy line search (``NewtonOptions.line_search_rule``). The increment
+then minimizes a convex potential, so the solution does not depend on the tolerance: N_q on
+the bench mesh moves by 2e-7 between 1e-8 and 1e-5, and the median iterations per step
+fall from 8 to 6. Non-associated runs keep ``NewtonOptions.tol`` (1e-8): their increment is
+not unique, and 1e-5 moved the calibrated footing's peak by 1.2 % (docs/fem_validation.md §5)."""
 NO_REFERENCE = "no published reference for these angles and this flow rule"
 CALIBRATED_ELEMENT = "P2"
 """Default element of a tier >= 1 footing (and its tier-0 check), on mesh level 1: the
@@ -162,7 +170,8 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
           apex_stiffness: float = 1e-9, dt_max: float = 0.05,
           settlement: float | None = None, relaxation_time: float | None = None,
           tier=0, tol_stall: float = NewtonOptions.tol_stall,
-          explicit: int | None = None) -> dict:
+          explicit: int | None = None, tol: float | None = None,
+          line_search: str | None = None) -> dict:
     """One footing analysis; returns the factor, its curve summary, Newton figures, files.
 
     ``tier`` 0 runs the constant angles ``phi_deg``, ``psi_deg``; a tier >= 1 (or an array:
@@ -178,6 +187,9 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
     (:class:`~contfab.fem.solver.NewtonOptions`). ``explicit`` = a number of cycles solves
     the push by explicit dynamic relaxation in that many cycles instead of Newton
     (:mod:`contfab.fem.explicit`; the curve has a point per hundredth of the push).
+    ``tol`` (Newton's relative residual tolerance) and ``line_search``
+    (``NewtonOptions.line_search_rule``) default by the flow rule: :data:`ASSOCIATED_TOL`
+    and ``"energy"`` with associated flow, ``NewtonOptions.tol`` and ``"residual"`` otherwise.
     """
     if settlement is not None and not 0.0 < settlement <= 1.0:
         raise ParamError(f"settlement = {settlement:g} B is outside the accepted range (0, 1]")
@@ -210,9 +222,16 @@ def solve(phi_deg: float, psi_deg: float, factor: str, element: str, level: int,
         f_dead += loads.body_force(disc, by=-gamma)
         norm = gamma * B_HALF**2                # N_γ = q_u / (½ γ B) = Q / (γ b²)
     reference = reference_factor(factor, phi_deg) if top == 0 else math.nan
+    associated = top == 0 and psi_deg == phi_deg and relaxation_time is None
+    if tol is None:
+        tol = ASSOCIATED_TOL if associated else NewtonOptions.tol
+    if line_search is None:
+        line_search = "energy" if associated else "residual"
     if explicit is None:
         solver = Solver(disc, material, stress0, material.initial_state(n),
-                        NewtonOptions(relaxation_time=relaxation_time, tol_stall=tol_stall))
+                        NewtonOptions(relaxation_time=relaxation_time, tol=tol,
+                                      tol_stall=max(tol, tol_stall),
+                                      line_search_rule=line_search))
     else:
         solver = ExplicitSolver(disc, material, stress0, material.initial_state(n),
                                 ExplicitOptions(cycles=explicit))
@@ -293,6 +312,13 @@ def add_arguments(p) -> None:
                    help="solve the push by explicit dynamic relaxation in CYCLES cycles "
                         "(contfab.fem.explicit; no equilibrium iteration: carries "
                         "non-associated collapse; check by doubling CYCLES) instead of Newton")
+    p.add_argument("--tol", type=float, default=None,
+                   help="Newton's relative residual tolerance |r_f| / max(|f_ext|, |reactions|) "
+                        f"(default {ASSOCIATED_TOL:g} with associated flow, "
+                        f"{NewtonOptions.tol:g} otherwise; range (0, 1))")
+    p.add_argument("--line-search", choices=LINE_SEARCH_RULES, default=None,
+                   help="Newton's line search (default: energy with associated flow, residual "
+                        "otherwise; contfab.fem.solver.stationary_alpha)")
     p.add_argument("--tol-stall", type=float, default=NewtonOptions.tol_stall,
                    help="accept a Newton step whose relative residual stops falling at or "
                         f"below this (default {NewtonOptions.tol_stall:g}; range [1e-8, 1))")
@@ -326,7 +352,9 @@ def run(args) -> CaseResult:
         args.tier = "0" if args.phi is not None or args.psi is not None else "1"
     if args.settlement is not None and not 0.0 < args.settlement <= 1.0:
         raise ParamError(f"settlement = {args.settlement:g} B is outside the accepted range (0, 1]")
-    NewtonOptions(relaxation_time=args.relaxation_time, tol_stall=args.tol_stall)  # ranges
+    tol = NewtonOptions.tol if args.tol is None else args.tol
+    NewtonOptions(relaxation_time=args.relaxation_time, tol=tol,                  # ranges
+                  tol_stall=max(tol, args.tol_stall))
     if args.explicit is not None:
         ExplicitOptions(cycles=args.explicit)                                        # range
         if args.relaxation_time is not None:
@@ -374,7 +402,8 @@ def run_tier0(args, params) -> CaseResult:
                                   not args.quiet, apex_stiffness=args.apex_stiffness,
                                   settlement=args.settlement,
                                   relaxation_time=args.relaxation_time,
-                                  tol_stall=args.tol_stall, explicit=args.explicit)
+                                  tol_stall=args.tol_stall, explicit=args.explicit, tol=args.tol,
+                                  line_search=args.line_search)
                     except ConvergenceError as exc:
                         if headline:
                             raise
@@ -463,7 +492,8 @@ def run_calibrated(args, params, tier) -> CaseResult:
     if args.factor == "Nq" and not args.no_check:
         phi = bounds["phi_star"]
         check = solve(phi, phi, "Nq", element, level, params, args.out, not args.quiet,
-                      apex_stiffness=args.apex_stiffness)
+                      apex_stiffness=args.apex_stiffness, tol=args.tol,
+                      line_search=args.line_search)
         label = f"tier-0 check N_q(phi*={phi:.2f}, associated)"
         check_figure = Figure(label, check["computed"], check["reference"], "Prandtl-Reissner")
         notes[label] = {k: check[k] for k in ("plateau_drift", "dofs", "steps", "median_newton",
@@ -475,7 +505,8 @@ def run_calibrated(args, params, tier) -> CaseResult:
         return solve(bounds["phi0"], bounds["psi0"], args.factor, element, level, run_params,
                      args.out, not args.quiet, apex_stiffness=args.apex_stiffness,
                      settlement=settlement, relaxation_time=args.relaxation_time,
-                     tier=point_tiers, tol_stall=args.tol_stall, explicit=args.explicit)
+                     tier=point_tiers, tol_stall=args.tol_stall, explicit=args.explicit, tol=args.tol,
+                                  line_search=args.line_search)
 
     if tier == "auto":
         r, auto = run_auto(one, params, args.tolerance, min_tier=1)
