@@ -367,6 +367,8 @@ def test_the_band_angle_of_prescribed_noisy_strips_is_within_half_a_degree(level
      "relaxation_time = -1.0 is outside the accepted range"),
     (["case", "strip_footing", "--tol-stall", "2", "--out", "none"],
      "need 0 < tol <= tol_stall < 1, got tol = 1e-08, tol_stall = 2.0"),
+    (["case", "strip_footing", "--tol", "1.5", "--out", "none"],
+     "tol = 1.5 is outside the accepted range (0, 1)"),
     (["case", "strip_footing", "--explicit", "0", "--out", "none"],
      "cycles = 0 is outside the accepted range: integers >= 1"),
     (["case", "strip_footing", "--explicit", "1000", "--relaxation-time", "1e-4", "--out",

@@ -352,6 +352,8 @@ def run(args) -> CaseResult:
         args.tier = "0" if args.phi is not None or args.psi is not None else "1"
     if args.settlement is not None and not 0.0 < args.settlement <= 1.0:
         raise ParamError(f"settlement = {args.settlement:g} B is outside the accepted range (0, 1]")
+    if args.tol is not None and not 0.0 < args.tol < 1.0:
+        raise ParamError(f"tol = {args.tol:g} is outside the accepted range (0, 1)")
     tol = NewtonOptions.tol if args.tol is None else args.tol
     NewtonOptions(relaxation_time=args.relaxation_time, tol=tol,                  # ranges
                   tol_stall=max(tol, args.tol_stall))
@@ -505,8 +507,8 @@ def run_calibrated(args, params, tier) -> CaseResult:
         return solve(bounds["phi0"], bounds["psi0"], args.factor, element, level, run_params,
                      args.out, not args.quiet, apex_stiffness=args.apex_stiffness,
                      settlement=settlement, relaxation_time=args.relaxation_time,
-                     tier=point_tiers, tol_stall=args.tol_stall, explicit=args.explicit, tol=args.tol,
-                                  line_search=args.line_search)
+                     tier=point_tiers, tol_stall=args.tol_stall, explicit=args.explicit,
+                     tol=args.tol, line_search=args.line_search)
 
     if tier == "auto":
         r, auto = run_auto(one, params, args.tolerance, min_tier=1)
