@@ -79,9 +79,9 @@ ASSOCIATED_TOL = 1e-5
 which also takes the energy line search (``NewtonOptions.line_search_rule``). The increment
 then minimizes a convex potential, so the solution does not depend on the tolerance: N_q on
 the bench mesh moves by 2e-7 between 1e-8 and 1e-5, and the median iterations per step are
-6 there, against 8 at 1e-8 with the residual line search. Non-associated runs keep ``NewtonOptions.tol`` (1e-8): their increment is
-not unique, and 1e-5 moved the calibrated footing's peak by 1.2 % (docs/fem_validation.md,
-Benchmark)."""
+6 there, against 8 at 1e-8 with the residual line search. Non-associated runs keep
+``NewtonOptions.tol`` (1e-8): their increment is not unique, and 1e-5 moved the calibrated
+footing's peak by 1.2 % (docs/fem_validation.md, Benchmark)."""
 NO_REFERENCE = "no published reference for these angles and this flow rule"
 CALIBRATED_ELEMENT = "P2"
 """Default element of a tier >= 1 footing (and its tier-0 check), on mesh level 1: the
