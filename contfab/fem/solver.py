@@ -181,10 +181,10 @@ def stationary_alpha(slope: Callable[[float], float | None], s0: float, trials: 
     then the secant through the last point below the root and the last above it (clipped
     to the bracket's inner 80 %; the Illinois variant, halving the slope kept at an end
     that two trials in a row did not move), or, while every trial still descends, the
-    secant beyond the last one (within [1.25 α, 2 α]). Accepts the first α with |s(α)| <= ``ratio``
-    |s0| (Matthies & Strang 1979, "The solution of nonlinear finite element equations",
-    Int. J. Numer. Meth. Eng. 14, 1613–1626); after ``trials`` further trials, the one
-    with the smallest |s|. ``slope`` returns None where the update fails (α is then
+    secant beyond the last one (within [1.25 α, 2 α]). Accepts the first α with
+    |s(α)| <= ``ratio`` |s0| (Matthies & Strang 1979, "The solution of nonlinear finite
+    element equations", Int. J. Numer. Meth. Eng. 14, 1613–1626); after ``trials`` further
+    trials, the one with the smallest |s|. ``slope`` returns None where the update fails (α is then
     halved toward the bracket's lower end).
     """
     lo, s_lo, hi, s_hi = 0.0, s0, math.inf, math.inf
