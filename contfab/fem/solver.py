@@ -632,8 +632,9 @@ class Solver:
         reduces it, else the best one tried.
         """
         free = system.free
-        s0 = math.nan if current is None else float(du[free] @ current.r[free])
-        if self.options.line_search_rule == "energy" and s0 < 0:
+        energy = self.options.line_search_rule == "energy" and current is not None
+        s0 = float(du[free] @ current.r[free]) if energy else math.nan
+        if s0 < 0:
             tried: dict[float, _Iterate | None] = {}
 
             def slope(alpha: float) -> float | None:
